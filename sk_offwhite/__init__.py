@@ -1,0 +1,15 @@
+"""sk_offwhite: physics-based multi-step system identification with sparse corrections."""
+
+from ._basis import RidgeBasis, compile_basis
+from ._estimator import GreyBoxSparseRegressor, expected_failed_checks
+from ._physics import Parameter, PhysicsModel
+
+__all__ = [
+    "GreyBoxSparseRegressor",
+    "Parameter",
+    "PhysicsModel",
+    "RidgeBasis",
+    "compile_basis",
+    "expected_failed_checks",
+]
+__version__ = "0.1.0.dev0"

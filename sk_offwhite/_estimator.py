@@ -1,0 +1,487 @@
+"""``GreyBoxSparseRegressor``: the scikit-learn estimator over the pure fitting core."""
+
+from __future__ import annotations
+
+import copy
+import warnings
+from numbers import Integral, Real
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+from sklearn.base import BaseEstimator, RegressorMixin, _fit_context, clone
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.metrics import r2_score
+from sklearn.utils._param_validation import Interval, StrOptions
+from sklearn.utils.validation import check_is_fitted, validate_data
+
+from ._basis import compile_basis
+from ._equations import format_equations
+from ._layout import Layout
+from ._physics import PhysicsModel
+from ._problem import (
+    bound_blocks,
+    build_model,
+    estimate_initial_state,
+    fitted_blocks,
+    free_blocks,
+    initial_blocks,
+    make_problem,
+    solve,
+)
+from ._rollout import simulate
+from ._segments import make_segments, split_at_gaps
+from ._validation import as_records, check_physics, is_experiment_list
+
+__all__ = ["GreyBoxSparseRegressor"]
+
+_ROW_ORDER_REASON = (
+    "rows are consecutive time samples of one simulated trajectory, not independent "
+    "observations: reordering or subsetting them changes the simulation"
+)
+
+
+def expected_failed_checks(estimator=None) -> dict[str, str]:
+    """scikit-learn checks that assume independent rows, with the reason they do not apply."""
+    return {
+        "check_methods_sample_order_invariance": _ROW_ORDER_REASON,
+        "check_methods_subset_invariance": _ROW_ORDER_REASON,
+    }
+
+
+def _safe_clone(value):
+    """``sklearn.clone`` for estimators, ``deepcopy`` for what clone refuses (CustomLibrary)."""
+    try:
+        return clone(value, safe=False)
+    except (RuntimeError, TypeError):
+        return copy.deepcopy(value)
+
+
+class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
+    r"""Physics model + sparse black-box correction, fitted on its multi-step simulation error.
+
+    The model (Donati et al., eq. 2) is
+
+    .. math::
+
+        \hat x_{k+1} = f(\hat x_k, u_k; \theta) + S\,\delta(\hat x_k, u_k; \omega), \qquad
+        \hat z_k = h(\hat x_k, u_k; \theta), \qquad
+        \delta_i = \sum_j \Omega_{ij}\, \varphi_j(\hat x_k, u_k),
+
+    and ``fit`` minimises over :math:`\theta`, :math:`\hat x_0` and :math:`\omega` the cost
+
+    .. math::
+
+        C_T = \frac{1}{N n_z}\sum_k \|\hat z_k - z_k\|^2 + \gamma \|\Omega\|_{1,\beta}
+            + \frac{\lambda}{N}\sum_k \|\max(p(\hat x_k), 0)\|^2
+            + \frac{\nu}{N}\sum_k \|q(\hat x_k)\|^2,
+
+    where :math:`\hat z` is the *simulated* output (the model feeds back its own state).
+    After the fit, weights with :math:`|\Omega_{ij}| \le` ``threshold`` are set to zero.
+
+    Parameters
+    ----------
+    physics : PhysicsModel, default=None
+        The physical model. ``None`` uses :meth:`PhysicsModel.linear`, a black-box linear
+        state-space model with one state per output.
+    library : pysindy feature library or RidgeBasis, default=None
+        Dictionary :math:`\varphi` of the correction, evaluated on :math:`[x; u]` with the
+        physics' state and input names. ``None`` fits the physics alone.
+    gamma : float, default=0.1
+        :math:`\gamma`, weight of the (smoothed) L1 norm of :math:`\Omega`.
+    lam : float, default=0.0
+        :math:`\lambda`, weight of the violation of ``physics.inequality`` (:math:`p\le 0`).
+    nu : float, default=0.0
+        :math:`\nu`, weight of the squared ``physics.equality`` (:math:`q = 0`).
+    horizon : int, default=None
+        :math:`T`. ``None`` simulates each record whole from its initial state. An int cuts
+        records into windows of ``horizon`` steps with their own initial states, linked by a
+        continuity penalty of weight ``shooting_weight`` (multiple shooting).
+    delta_states : sequence of int, default=None
+        State equations that receive the correction; ``None`` means all.
+    threshold : float, default=1e-4
+        Weights with :math:`|\Omega_{ij}|` at or below it are set to zero after the fit.
+    l1_smoothing : float, default=1000.0
+        :math:`\beta` of the softplus surrogate of :math:`|w|` (larger is closer to L1).
+    shooting_weight : float, default=10.0
+        Weight of the window-continuity penalty when ``horizon`` is set.
+    solver : {'auto', 'lm', 'optax'}, default='auto'
+        ``'lm'``: projected Levenberg-Marquardt with forward-mode Jacobians; ``'optax'``:
+        ``optimizer`` with reverse-mode gradients; ``'auto'``: LM up to 400 free variables.
+    optimizer : optax.GradientTransformation, default=None
+        Used by the optax solver; ``None`` is Adam (cosine-decayed from 1e-2) behind global
+        norm clipping at 1.
+    max_iter : int, default=200
+        Maximum number of solver iterations.
+    tol : float, default=1e-10
+        Relative cost decrease under which the solver stops.
+    init_window : int, default=None
+        Samples used by :meth:`score` to estimate the initial state of the scored record
+        (excluded from the score). ``None``: ``min(50, n_samples // 5)``; ``0``: simulate
+        from the fitted initial state ``x0_``.
+    verbose : int, default=0
+        Print solver progress every 10 iterations (every iteration if > 1).
+    random_state : int, RandomState instance or None, default=None
+        Seeds the initial inner weights of a ridge basis.
+
+    Attributes
+    ----------
+    parameters_ : dict
+        Fitted physical parameters by name.
+    theta_ : ndarray of shape (n_parameters,)
+        The same values, in ``physics.parameter_names`` order.
+    x0_ : ndarray of shape (n_states,)
+        Fitted initial state of the first record; ``initial_states_`` holds all records'.
+    coef_ : ndarray of shape (n_delta_states, n_features)
+        :math:`\Omega` after thresholding (empty without a library).
+    support_ : ndarray of bool, same shape as ``coef_``
+    feature_names_ : list of str
+        Names of the dictionary terms (from the pysindy library).
+    delta_states_ : tuple of int
+    inner_params_ : dict
+        Fitted inner weights of a ridge basis (``W``, ``B``), empty otherwise.
+    loss_history_ : ndarray
+        Cost after each accepted step. ``cost_``, ``n_iter_``, ``converged_`` and
+        ``solver_message_`` describe the end of the fit.
+    n_features_in_ : int
+        Number of inputs. ``n_outputs_``: number of outputs.
+
+    Notes
+    -----
+    Rows of ``u`` and ``z`` are consecutive samples. Pass ``sample_index`` (the original time
+    index of each row) when rows come from non-adjacent blocks, e.g. to
+    ``GridSearchCV.fit(u, z, sample_index=np.arange(n))``: every gap then starts a new record
+    with its own initial state instead of being simulated through.
+    """
+
+    _parameter_constraints: dict = {
+        "physics": [PhysicsModel, None],
+        "library": "no_validation",
+        "gamma": [Interval(Real, 0, None, closed="left")],
+        "lam": [Interval(Real, 0, None, closed="left")],
+        "nu": [Interval(Real, 0, None, closed="left")],
+        "horizon": [Interval(Integral, 1, None, closed="left"), None],
+        "delta_states": ["array-like", None],
+        "threshold": [Interval(Real, 0, None, closed="left")],
+        "l1_smoothing": [Interval(Real, 0, None, closed="neither")],
+        "shooting_weight": [Interval(Real, 0, None, closed="left")],
+        "solver": [StrOptions({"auto", "lm", "optax"})],
+        "optimizer": "no_validation",
+        "max_iter": [Interval(Integral, 1, None, closed="left")],
+        "tol": [Interval(Real, 0, None, closed="left")],
+        "init_window": [Interval(Integral, 0, None, closed="left"), None],
+        "verbose": ["verbose"],
+        "random_state": ["random_state"],
+    }
+
+    def __init__(
+        self,
+        physics: PhysicsModel | None = None,
+        library=None,
+        gamma: float = 0.1,
+        lam: float = 0.0,
+        nu: float = 0.0,
+        horizon: int | None = None,
+        *,
+        delta_states=None,
+        threshold: float = 1e-4,
+        l1_smoothing: float = 1000.0,
+        shooting_weight: float = 10.0,
+        solver: str = "auto",
+        optimizer=None,
+        max_iter: int = 200,
+        tol: float = 1e-10,
+        init_window: int | None = None,
+        verbose: int = 0,
+        random_state=None,
+    ):
+        self.physics = physics
+        self.library = library
+        self.gamma = gamma
+        self.lam = lam
+        self.nu = nu
+        self.horizon = horizon
+        self.delta_states = delta_states
+        self.threshold = threshold
+        self.l1_smoothing = l1_smoothing
+        self.shooting_weight = shooting_weight
+        self.solver = solver
+        self.optimizer = optimizer
+        self.max_iter = max_iter
+        self.tol = tol
+        self.init_window = init_window
+        self.verbose = verbose
+        self.random_state = random_state
+
+    # ------------------------------------------------------------------ scikit-learn glue
+    def __sklearn_clone__(self):
+        params = {k: _safe_clone(v) for k, v in self.get_params(deep=False).items()}
+        return type(self)(**params)
+
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.target_tags.multi_output = True
+        tags.target_tags.single_output = True
+        tags.non_deterministic = False
+        return tags
+
+    def __getstate__(self):
+        state = super().__getstate__()
+        state.pop("_compiled", None)
+        return state
+
+    # ------------------------------------------------------------------ data
+    def _records(self, u, z, sample_index, reset: bool):
+        """Validated list of contiguous ``(u, z)`` records."""
+        if is_experiment_list(u):
+            records = as_records(u, z)
+            self._check_widths(records[0][0].shape[1], reset)
+            self._z_was_1d = False if reset else self._z_was_1d
+            return records
+        u, z = validate_data(
+            self, u, z, reset=reset, multi_output=True, y_numeric=True, dtype=np.float64
+        )
+        if reset:
+            self._z_was_1d = z.ndim == 1
+        return split_at_gaps(u, z.reshape(z.shape[0], -1), sample_index)
+
+    def _check_widths(self, n_inputs: int, reset: bool) -> None:
+        if reset:
+            self.n_features_in_ = n_inputs
+        elif n_inputs != self.n_features_in_:
+            raise ValueError(
+                f"u has {n_inputs} features, but {type(self).__name__} is expecting "
+                f"{self.n_features_in_} features as input."
+            )
+
+    def _resolved_physics(self, n_inputs: int, n_outputs: int) -> PhysicsModel:
+        if self.physics is None:
+            return PhysicsModel.linear(n_inputs, n_outputs)
+        return self.physics
+
+    def _delta_states(self, physics: PhysicsModel) -> tuple[int, ...]:
+        if self.delta_states is None:
+            return tuple(range(physics.n_states))
+        states = tuple(int(i) for i in np.atleast_1d(self.delta_states))
+        if not states or not all(0 <= i < physics.n_states for i in states):
+            raise ValueError(
+                f"delta_states must be indices in [0, {physics.n_states}), got {states}."
+            )
+        return states
+
+    # ------------------------------------------------------------------ fit
+    @_fit_context(prefer_skip_nested_validation=True)
+    def fit(self, u, z, sample_index=None):
+        """Fit parameters, initial state(s) and correction on the simulation error.
+
+        Parameters
+        ----------
+        u : array-like of shape (n_samples, n_inputs) or list of such arrays
+            Input sequence(s); a list holds several experiments fitted jointly, each with
+            its own initial state.
+        z : array-like of shape (n_samples,) or (n_samples, n_outputs), or list
+            Measured output sequence(s).
+        sample_index : array-like of shape (n_samples,), default=None
+            Original time index of each row; a jump starts a new record (see Notes).
+
+        Returns
+        -------
+        self : GreyBoxSparseRegressor
+        """
+        records = self._records(u, z, sample_index, reset=True)
+        n_inputs, n_outputs = records[0][0].shape[1], records[0][1].shape[1]
+        self._check_record_lengths(records)
+        physics = self._resolved_physics(n_inputs, n_outputs)
+        with jax.enable_x64(True):
+            check_physics(physics, n_inputs, n_outputs, records[0][0][0])
+            basis, model = self._compile(physics)
+            blocks, result = self._solve(physics, basis, model, records)
+        self._store(physics, basis, model, blocks, result, records, n_outputs)
+        return self
+
+    def _check_record_lengths(self, records) -> None:
+        longest = max(u.shape[0] for u, _ in records)
+        if longest < 2:
+            raise ValueError("fit needs at least 2 consecutive samples, got 1 sample.")
+        if self.horizon is not None and longest < self.horizon:
+            raise ValueError(
+                f"horizon={self.horizon} is longer than the data ({longest} samples); "
+                "use a shorter horizon or horizon=None."
+            )
+
+    def _compile(self, physics):
+        delta_states = self._delta_states(physics)
+        basis = None
+        if self.library is not None:
+            features = list(physics.state_names) + list(physics.input_names)
+            basis = compile_basis(self.library, features, len(delta_states), self.random_state)
+        return basis, build_model(physics, basis, delta_states)
+
+    def _solve(self, physics, basis, model, records):
+        segments = make_segments(records, self.horizon)
+        blocks = initial_blocks(physics, basis, model, records, segments, self.horizon)
+        free = free_blocks(physics, basis, model, segments)
+        layout = Layout.from_arrays(blocks)
+        weights = (self.gamma, self.lam, self.nu, self.shooting_weight, self.l1_smoothing)
+        problem, free0 = make_problem(
+            layout, blocks, free, bound_blocks(physics, blocks), segments, weights
+        )
+        if free0.shape[0] == 0:
+            raise ValueError("nothing to fit: every parameter and initial state is fixed.")
+        result = solve(
+            model,
+            layout,
+            problem,
+            free0,
+            solver=self.solver,
+            optimizer=self._optimizer(),
+            max_iter=self.max_iter,
+            tol=self.tol,
+            verbose=self.verbose,
+        )
+        self._warn_if_unfinished(result)
+        return fitted_blocks(layout, problem, result), result
+
+    def _optimizer(self):
+        if self.optimizer is not None:
+            return self.optimizer
+        schedule = optax.cosine_decay_schedule(1e-2, decay_steps=self.max_iter, alpha=0.01)
+        return optax.chain(optax.clip_by_global_norm(1.0), optax.adam(schedule))
+
+    def _warn_if_unfinished(self, result) -> None:
+        if not np.isfinite(result.cost):
+            raise ValueError(
+                "the simulation of the initial guess is not finite (the model diverges); "
+                "change physics.x0, the parameter values or use a shorter horizon."
+            )
+        if not result.converged:
+            warnings.warn(
+                f"The fit did not converge in max_iter={self.max_iter} iterations "
+                f"({result.message}); increase max_iter.",
+                ConvergenceWarning,
+                stacklevel=3,
+            )
+
+    def _store(self, physics, basis, model, blocks, result, records, n_outputs) -> None:
+        self.physics_ = physics
+        self.n_outputs_ = n_outputs
+        self.theta_ = np.asarray(blocks["theta"], float)
+        self.parameters_ = dict(zip(physics.parameter_names, self.theta_.tolist(), strict=True))
+        starts = make_segments(records, self.horizon).linked == 0
+        self.initial_states_ = np.asarray(blocks["x0"], float)[starts]
+        self.x0_ = self.initial_states_[0].copy()
+        omega = np.asarray(blocks.get("omega", np.zeros((0, 0))), float)
+        self.coef_ = np.where(np.abs(omega) <= self.threshold, 0.0, omega)
+        self.support_ = self.coef_ != 0
+        self.feature_names_ = [] if basis is None else list(basis.names)
+        self.delta_states_ = model.delta_states
+        self.inner_params_ = {k: np.asarray(blocks[k], float) for k in model.inner_names}
+        self.loss_history_ = np.asarray(result.history, float)
+        self.cost_, self.n_iter_ = float(result.cost), int(result.n_iter)
+        self.converged_, self.solver_message_ = bool(result.converged), result.message
+        self._compiled = (basis, model)
+
+    # ------------------------------------------------------------------ predict / score
+    def _fitted_model(self):
+        compiled = getattr(self, "_compiled", None)
+        if compiled is None:
+            compiled = self._compile(self.physics_)
+        return compiled[1]
+
+    def _fitted_blocks(self) -> dict:
+        blocks = {"theta": self.theta_}
+        if self.coef_.size:
+            blocks["omega"] = self.coef_
+        blocks.update(self.inner_params_)
+        return blocks
+
+    def _simulate_record(self, model, u, x0):
+        params = {k: jnp.asarray(v) for k, v in self._fitted_blocks().items()}
+        _, outputs, _ = jax.jit(simulate, static_argnums=0)(
+            model, params, jnp.asarray(x0, float), jnp.asarray(u)
+        )
+        return np.asarray(outputs)
+
+    def _initial_state(self, model, u, z_init, x0):
+        if x0 is not None:
+            x0 = np.asarray(x0, float).reshape(-1)
+            if x0.shape != self.x0_.shape or not np.all(np.isfinite(x0)):
+                raise ValueError(f"x0 must be {self.x0_.shape[0]} finite values, got {x0!r}.")
+            return x0
+        if z_init is None or len(z_init) == 0:
+            return self.x0_
+        n = len(z_init)
+        return estimate_initial_state(
+            model, self._fitted_blocks(), u[:n], z_init, self.x0_, np.ones_like(self.x0_, bool)
+        )
+
+    def predict(self, u, *, x0=None, z_init=None):
+        """Simulate the fitted model over the input sequence ``u``.
+
+        Parameters
+        ----------
+        u : array-like of shape (n_samples, n_inputs) or list of such arrays
+        x0 : array-like of shape (n_states,), default=None
+            Initial state. ``None`` uses ``z_init`` if given, else ``x0_``.
+        z_init : array-like of shape (n_init,) or (n_init, n_outputs), default=None
+            First measured outputs; the initial state is estimated from them with the
+            fitted parameters fixed.
+
+        Returns
+        -------
+        z_sim : ndarray of shape (n_samples,) or (n_samples, n_outputs), or list
+        """
+        check_is_fitted(self)
+        if is_experiment_list(u):
+            return [self.predict(ue, x0=x0) for ue in u]
+        u = validate_data(self, u, reset=False, dtype=np.float64)
+        if z_init is not None:
+            z_init = np.asarray(z_init, float).reshape(len(z_init), -1)
+        with jax.enable_x64(True):
+            model = self._fitted_model()
+            start = self._initial_state(model, u, z_init, x0)
+            outputs = self._simulate_record(model, u, start)
+        return outputs.ravel() if self._z_was_1d else outputs
+
+    def _score_window(self, n_samples: int) -> int:
+        if self.init_window is not None:
+            return min(self.init_window, n_samples - 1)
+        return min(50, n_samples // 5)
+
+    def score(self, u, z, sample_index=None):
+        """:math:`R^2` of the simulated output, after estimating each record's initial state.
+
+        The first ``init_window`` samples of every contiguous record (see ``sample_index``)
+        are used to estimate its initial state, as MATLAB's ``compare`` does, and are
+        excluded from the score. With ``init_window=0`` records start from ``x0_``.
+        """
+        check_is_fitted(self)
+        records = self._records(u, z, sample_index, reset=False)
+        measured, simulated = [], []
+        for u_r, z_r in records:
+            window = self._score_window(u_r.shape[0])
+            z_sim = self.predict(u_r, z_init=z_r[:window] if window else None)
+            measured.append(z_r[window:])
+            simulated.append(np.asarray(z_sim).reshape(len(u_r), -1)[window:])
+        return r2_score(np.concatenate(measured), np.concatenate(simulated))
+
+    # ------------------------------------------------------------------ read-out
+    def equations(self, precision: int = 4) -> list[str]:
+        """Identified state equations, one string per state (corrections written out)."""
+        check_is_fitted(self)
+        return format_equations(
+            self.physics_, self.coef_, self.feature_names_, self.delta_states_, precision
+        )
+
+    def print(self, precision: int = 4) -> None:
+        """Print the fitted parameters, initial state and equations (pysindy-style)."""
+        for line in self.equations(precision):
+            print(line)
+        for name, value in self.parameters_.items():
+            print(f"  {name} = {value:.{precision}g}")
+        x0 = ", ".join(
+            f"{n}={v:.{precision}g}"
+            for n, v in zip(self.physics_.state_names, self.x0_, strict=True)
+        )
+        print(f"  x0: {x0}")

@@ -1,0 +1,212 @@
+r"""Solvers for the multi-step cost: Levenberg-Marquardt and optax first-order loops.
+
+Both work on the flat vector of free decision variables and project onto the box bounds
+after every step. Each iteration is one jitted call, traced once per fit (the model and
+the layout are static arguments, data and weights are dynamic), so the Python loop only
+keeps the best finite iterate, the loss history and the stopping rules.
+
+Derivatives: Levenberg-Marquardt needs the residual Jacobian :math:`J` (``R x P``); it is
+built in forward mode (``jacfwd``) when ``P <= R`` (few parameters, long records: the usual
+grey-box case) and in reverse mode otherwise. The optax loop needs only the gradient of
+:math:`\|r\|^2` and uses reverse mode.
+"""
+
+from __future__ import annotations
+
+import warnings
+from functools import partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import optax
+from sklearn.exceptions import ConvergenceWarning
+
+from ._layout import Layout
+from ._objective import CostWeights, residuals
+from ._rollout import Model
+from ._segments import Segments
+
+__all__ = ["Problem", "SolverResult", "free_residuals", "levenberg_marquardt", "run_optax"]
+
+
+class Problem(NamedTuple):
+    """Dynamic data of one minimisation (a pytree: every leaf is an array)."""
+
+    segments: Segments
+    base: jax.Array
+    free_index: jax.Array
+    lower: jax.Array
+    upper: jax.Array
+    omega_free: jax.Array
+    weights: CostWeights
+
+
+class SolverResult(NamedTuple):
+    """Outcome of a solver run: best finite iterate and its diagnostics."""
+
+    free: np.ndarray
+    cost: float
+    history: np.ndarray
+    n_iter: int
+    converged: bool
+    message: str
+
+
+def free_residuals(free, problem: Problem, model: Model, layout: Layout):
+    """Residual vector as a function of the free variables only."""
+    params = layout.unflatten(problem.base.at[problem.free_index].set(free))
+    return residuals(model, params, problem.segments, problem.omega_free, problem.weights)
+
+
+class _LMState(NamedTuple):
+    free: jax.Array
+    residual: jax.Array
+    jacobian: jax.Array
+    cost: jax.Array
+    damping: jax.Array
+
+
+def _jacobian(free, problem, model, layout, forward):
+    fun = partial(free_residuals, problem=problem, model=model, layout=layout)
+    return (jax.jacfwd if forward else jax.jacrev)(fun)(free)
+
+
+@partial(jax.jit, static_argnames=("model", "layout", "forward"))
+def _lm_init(free, problem, *, model, layout, forward):
+    r = free_residuals(free, problem, model, layout)
+    jac = _jacobian(free, problem, model, layout, forward)
+    return _LMState(free, r, jac, r @ r, jnp.asarray(1e-3, free.dtype))
+
+
+def _lm_trial_step(state: _LMState, problem: Problem):
+    r"""Damped Gauss-Newton step :math:`(J^TJ + \mu D)\,s = -J^Tr`, projected on the box."""
+    jtj = state.jacobian.T @ state.jacobian
+    diag = jnp.diag(jtj)
+    scale = diag + 1e-9 * jnp.maximum(jnp.max(diag), 1e-30)
+    step = jnp.linalg.solve(
+        jtj + jnp.diag(state.damping * scale), -state.jacobian.T @ state.residual
+    )
+    return jnp.clip(state.free + step, problem.lower, problem.upper)
+
+
+@partial(jax.jit, static_argnames=("model", "layout", "forward"))
+def _lm_iteration(state: _LMState, problem, *, model, layout, forward):
+    candidate = _lm_trial_step(state, problem)
+    r_new = free_residuals(candidate, problem, model, layout)
+    cost_new = r_new @ r_new
+    accept = jnp.isfinite(cost_new) & (cost_new < state.cost)
+    jac = jax.lax.cond(
+        accept,
+        lambda: _jacobian(candidate, problem, model, layout, forward),
+        lambda: state.jacobian,
+    )
+    choose = partial(jnp.where, accept)
+    new = _LMState(
+        choose(candidate, state.free),
+        choose(r_new, state.residual),
+        jac,
+        choose(cost_new, state.cost),
+        choose(state.damping / 3.0, state.damping * 4.0),
+    )
+    return new, accept
+
+
+def levenberg_marquardt(
+    free0,
+    problem: Problem,
+    model: Model,
+    layout: Layout,
+    *,
+    max_iter: int,
+    tol: float,
+    verbose: int = 0,
+) -> SolverResult:
+    r"""Projected Levenberg-Marquardt on :math:`\|r(\cdot)\|^2`.
+
+    Stops when an accepted step lowers the cost by less than ``tol`` (relative), when the
+    gradient :math:`J^T r` vanishes, or when the damping grows past ``1e10`` (no descent
+    step exists: a stationary point up to numerical precision).
+    """
+    n_residuals = int(free_residuals(free0, problem, model, layout).shape[0])
+    forward = free0.shape[0] <= n_residuals
+    static = dict(model=model, layout=layout, forward=forward)
+    state = _lm_init(free0, problem, **static)
+    history, message, converged = [float(state.cost)], "max_iter reached", False
+    for iteration in range(1, max_iter + 1):
+        previous = float(state.cost)
+        state, accepted = _lm_iteration(state, problem, **static)
+        if bool(accepted):
+            history.append(float(state.cost))
+            _report(verbose, iteration, history[-1], float(state.damping))
+            if previous - history[-1] <= tol * max(previous, 1e-300):
+                converged, message = True, "relative cost decrease below tol"
+                break
+        elif float(state.damping) > 1e10:
+            converged, message = True, "no descent step left (stationary point)"
+            break
+    return SolverResult(
+        np.asarray(state.free), history[-1], np.asarray(history), iteration, converged, message
+    )
+
+
+def _report(verbose: int, iteration: int, cost: float, extra: float) -> None:
+    if verbose and (verbose > 1 or iteration % 10 == 0 or iteration == 1):
+        print(f"[sk_offwhite] iter {iteration:5d}  cost {cost:.6e}  ({extra:.2e})")
+
+
+@partial(jax.jit, static_argnames=("model", "layout", "optimizer"))
+def _optax_iteration(free, opt_state, problem, *, model, layout, optimizer):
+    def cost(f):
+        r = free_residuals(f, problem, model, layout)
+        return r @ r
+
+    value, grad = jax.value_and_grad(cost)(free)
+    updates, opt_state = optimizer.update(grad, opt_state, free)
+    new = jnp.clip(optax.apply_updates(free, updates), problem.lower, problem.upper)
+    return new, opt_state, value
+
+
+def run_optax(
+    free0,
+    problem: Problem,
+    model: Model,
+    layout: Layout,
+    optimizer,
+    *,
+    max_iter: int,
+    tol: float,
+    patience: int = 100,
+    verbose: int = 0,
+) -> SolverResult:
+    """First-order loop with any optax transformation, keeping the best finite iterate.
+
+    Stops after ``patience`` iterations without a relative improvement of ``tol`` of the
+    best cost. A non-finite cost ends the loop: the best finite iterate is returned and a
+    :class:`~sklearn.exceptions.ConvergenceWarning` says so.
+    """
+    static = dict(model=model, layout=layout, optimizer=optimizer)
+    free, opt_state = free0, optimizer.init(free0)
+    best_free, best_cost, since_best, history = np.asarray(free0), np.inf, 0, []
+    converged, message = False, "max_iter reached"
+    for iteration in range(1, max_iter + 1):
+        candidate, opt_state, value = _optax_iteration(free, opt_state, problem, **static)
+        value = float(value)
+        if not np.isfinite(value):
+            message = f"non-finite cost at iteration {iteration}; kept the best finite iterate"
+            warnings.warn(f"The fit diverged: {message}.", ConvergenceWarning, stacklevel=3)
+            break
+        history.append(value)
+        _report(verbose, iteration, value, best_cost)
+        if value < best_cost * (1.0 - tol):
+            since_best = 0
+        else:
+            since_best += 1
+        if value < best_cost:
+            best_free, best_cost = np.asarray(free), value
+        if since_best >= patience:
+            converged, message = True, f"no relative improvement of tol in {patience} iterations"
+            break
+        free = candidate
+    return SolverResult(best_free, best_cost, np.asarray(history), iteration, converged, message)

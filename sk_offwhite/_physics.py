@@ -1,0 +1,364 @@
+r"""The user's physics: a discrete-time state-space model with named parameters.
+
+A :class:`PhysicsModel` holds
+
+.. math::
+
+    x_{k+1} = f(x_k, u_k; \theta), \qquad z_k = h(x_k, u_k; \theta),
+
+with named physical parameters :math:`\theta` (value, bounds, fixed flag), an initial-state
+guess :math:`x_0` and optional physics constraints :math:`p(x, u; \theta) \le 0` and
+:math:`q(x, u; \theta) = 0`. The functions are written with ``jax.numpy`` and receive
+``theta`` as a ``dict`` mapping parameter names to scalars.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = ["DiscretizedStep", "MeasuredStates", "Parameter", "PhysicsModel"]
+
+StepFn = Callable[[Any, Any, Mapping[str, Any]], Any]
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A named physical parameter.
+
+    Parameters
+    ----------
+    value : float
+        Initial guess (or the fixed value when ``fixed``).
+    bounds : tuple of (float or None, float or None), default=(None, None)
+        Box constraint ``lower <= theta <= upper`` enforced by projection during the fit.
+    fixed : bool, default=False
+        Keep the parameter at ``value`` instead of fitting it.
+    """
+
+    value: float
+    bounds: tuple[float | None, float | None] = (None, None)
+    fixed: bool = False
+
+    def __post_init__(self):
+        lower, upper = _bound_pair(self.bounds)
+        if not math.isfinite(float(self.value)):
+            raise ValueError(f"Parameter value must be finite, got {self.value!r}.")
+        if lower > upper:
+            raise ValueError(f"Parameter bounds must satisfy lower <= upper, got {self.bounds}.")
+        if not lower <= float(self.value) <= upper:
+            raise ValueError(f"Parameter value {self.value} lies outside its bounds {self.bounds}.")
+
+
+def _bound_pair(bounds) -> tuple[float, float]:
+    """Return ``bounds`` as floats with ``None`` mapped to -inf / +inf."""
+    if len(bounds) != 2:
+        raise ValueError(f"bounds must be a (lower, upper) pair, got {bounds!r}.")
+    lower = -np.inf if bounds[0] is None else float(bounds[0])
+    upper = np.inf if bounds[1] is None else float(bounds[1])
+    return lower, upper
+
+
+def _as_parameter(name: str, spec) -> Parameter:
+    if isinstance(spec, Parameter):
+        return spec
+    if isinstance(spec, int | float | np.number):
+        return Parameter(float(spec))
+    raise TypeError(
+        f"parameters[{name!r}] must be a float or a Parameter, got {type(spec).__name__}."
+    )
+
+
+def _default_names(prefix: str, count: int) -> tuple[str, ...]:
+    if count == 1 and prefix == "u":
+        return ("u",)
+    return tuple(f"{prefix}{i + 1}" for i in range(count))
+
+
+def _check_names(argument: str, names, count: int) -> tuple[str, ...]:
+    names = tuple(str(name) for name in names)
+    if len(names) != count:
+        raise ValueError(f"{argument} must have {count} entries, got {len(names)}.")
+    if len(set(names)) != count:
+        raise ValueError(f"{argument} must be unique, got {names}.")
+    return names
+
+
+class MeasuredStates:
+    """Output map ``z = x[indices]`` (a picklable callable)."""
+
+    def __init__(self, indices: Sequence[int], n_states: int):
+        self.indices = tuple(int(i) for i in np.atleast_1d(indices))
+        if not self.indices or not all(0 <= i < n_states for i in self.indices):
+            raise ValueError(
+                f"output state indices {self.indices} out of range for {n_states} states."
+            )
+
+    def __call__(self, x, u, theta):
+        return x[np.asarray(self.indices)]
+
+    def __repr__(self) -> str:
+        return f"MeasuredStates({list(self.indices)})"
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, MeasuredStates) and other.indices == self.indices
+
+    def __hash__(self) -> int:
+        return hash((MeasuredStates, self.indices))
+
+
+class PhysicsModel:
+    """Discrete-time physical model with named parameters.
+
+    Parameters
+    ----------
+    step : callable
+        ``step(x, u, theta) -> x_next``, written with ``jax.numpy``; ``x`` has shape
+        ``(n_states,)``, ``u`` shape ``(n_inputs,)``, ``theta`` is a dict of scalars.
+    output : callable or int or sequence of int
+        ``output(x, u, theta) -> z`` of shape ``(n_outputs,)``, or the indices of the
+        measured states (``z = x[output]``).
+    parameters : dict
+        Maps each parameter name to a float (initial guess) or a :class:`Parameter`.
+    n_states : int
+        Dimension of the state ``x``.
+    n_inputs : int
+        Dimension of the input ``u``.
+    x0 : array-like of shape (n_states,), default=None
+        Initial-state guess; zeros when ``None``.
+    x0_fixed : bool or array-like of bool, default=False
+        Initial-state entries kept at ``x0`` instead of being estimated.
+    x0_bounds : tuple of (float or None, float or None), default=(None, None)
+        Box constraint on the estimated initial state (applied to every entry).
+    state_names, input_names, output_names : sequence of str, default=None
+        Names used in print-outs and feature names (``x1..``, ``u``/``u1..``, ``z1..``).
+    inequality : callable, default=None
+        ``p(x, u, theta) -> array`` that should stay ``<= 0`` along the trajectory.
+    equality : callable, default=None
+        ``q(x, u, theta) -> array`` that should stay ``== 0`` along the trajectory.
+    """
+
+    def __init__(
+        self,
+        step: StepFn,
+        output: StepFn | int | Sequence[int],
+        parameters: Mapping[str, float | Parameter],
+        n_states: int,
+        n_inputs: int,
+        *,
+        x0=None,
+        x0_fixed=False,
+        x0_bounds=(None, None),
+        state_names: Sequence[str] | None = None,
+        input_names: Sequence[str] | None = None,
+        output_names: Sequence[str] | None = None,
+        inequality: StepFn | None = None,
+        equality: StepFn | None = None,
+    ):
+        if not callable(step):
+            raise TypeError("step must be callable as step(x, u, theta).")
+        self.n_states = _positive_int("n_states", n_states)
+        self.n_inputs = _positive_int("n_inputs", n_inputs, allow_zero=True)
+        self.step = step
+        self.output = output if callable(output) else MeasuredStates(output, self.n_states)
+        self.parameters = {str(k): _as_parameter(str(k), v) for k, v in parameters.items()}
+        self.x0 = self._initial_state(x0)
+        self.x0_fixed = np.broadcast_to(np.asarray(x0_fixed, dtype=bool), (self.n_states,)).copy()
+        self.x0_bounds = _bound_pair(x0_bounds)
+        self.state_names = _check_names(
+            "state_names", state_names or _default_names("x", self.n_states), self.n_states
+        )
+        self.input_names = _check_names(
+            "input_names", input_names or _default_names("u", self.n_inputs), self.n_inputs
+        )
+        self.output_names = tuple(output_names) if output_names is not None else None
+        self.inequality = inequality
+        self.equality = equality
+
+    @classmethod
+    def from_ode(
+        cls,
+        rhs: StepFn,
+        sampling_time: float,
+        output,
+        parameters,
+        n_states: int,
+        n_inputs: int,
+        *,
+        method: str = "rk4",
+        n_substeps: int = 1,
+        **kwargs,
+    ) -> PhysicsModel:
+        """Build a model from a continuous-time right-hand side ``dx/dt = rhs(x, u, theta)``.
+
+        The input is held constant over each sampling interval (zero-order hold) and the
+        ODE is integrated with ``n_substeps`` steps of explicit Euler or classical RK4, as
+        MATLAB ``idnlgrey`` users expect from a continuous-time grey-box model.
+        """
+        if not sampling_time > 0:
+            raise ValueError(f"sampling_time must be positive, got {sampling_time!r}.")
+        step = DiscretizedStep(rhs, float(sampling_time), method, n_substeps)
+        model = cls(step, output, parameters, n_states, n_inputs, **kwargs)
+        model.rhs, model.sampling_time, model.method = rhs, float(sampling_time), method
+        return model
+
+    @classmethod
+    def linear(cls, n_inputs: int, n_outputs: int) -> PhysicsModel:
+        """Black-box linear state-space model used when no physics is given.
+
+        One state per output: :math:`x_{k+1} = A x_k + B u_k + b`, :math:`z_k = x_k + D u_k`,
+        with every entry of ``A, B, b, D`` a named parameter (``A[i,j]`` etc.), ``A`` started
+        at zero. It makes the estimator usable (and checkable) without a physical model.
+        """
+        step = LinearStateSpace(n_inputs, n_outputs, "step")
+        output = LinearStateSpace(n_inputs, n_outputs, "output")
+        names = step.parameter_names()
+        return cls(step, output, dict.fromkeys(names, 0.0), n_outputs, n_inputs)
+
+    def _initial_state(self, x0) -> np.ndarray:
+        if x0 is None:
+            return np.zeros(self.n_states)
+        x0 = np.asarray(x0, dtype=float).reshape(-1)
+        if x0.shape != (self.n_states,) or not np.all(np.isfinite(x0)):
+            raise ValueError(f"x0 must be {self.n_states} finite values, got {x0!r}.")
+        return x0
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        """Names of all physical parameters, in declaration order."""
+        return tuple(self.parameters)
+
+    @property
+    def free_parameter_names(self) -> tuple[str, ...]:
+        """Names of the parameters that are fitted (not ``fixed``)."""
+        return tuple(name for name, p in self.parameters.items() if not p.fixed)
+
+    def parameter_values(self) -> np.ndarray:
+        """Initial values of all parameters, in declaration order."""
+        return np.array([p.value for p in self.parameters.values()], dtype=float)
+
+    def parameter_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds of all parameters, in declaration order."""
+        pairs = [_bound_pair(p.bounds) for p in self.parameters.values()]
+        return np.array([lo for lo, _ in pairs]), np.array([hi for _, hi in pairs])
+
+    def with_parameters(self, **updates) -> PhysicsModel:
+        """Copy of the model with some parameters replaced (floats or :class:`Parameter`)."""
+        clone = self.__class__.__new__(self.__class__)
+        clone.__dict__.update(self.__dict__)
+        clone.parameters = dict(self.parameters)
+        for name, spec in updates.items():
+            if name not in self.parameters:
+                raise KeyError(f"unknown parameter {name!r}; known: {self.parameter_names}.")
+            clone.parameters[name] = _as_parameter(name, spec)
+        return clone
+
+    def __repr__(self) -> str:
+        params = ", ".join(
+            f"{k}={p.value:g}" + (" (fixed)" if p.fixed else "") for k, p in self.parameters.items()
+        )
+        step_name = getattr(self.step, "__name__", type(self.step).__name__)
+        return (
+            f"PhysicsModel(step={step_name}, n_states={self.n_states}, "
+            f"n_inputs={self.n_inputs}, parameters={{{params}}})"
+        )
+
+
+def _positive_int(argument: str, value, allow_zero: bool = False) -> int:
+    if isinstance(value, bool) or not isinstance(value, int | np.integer):
+        raise TypeError(f"{argument} must be an int, got {value!r}.")
+    if value < (0 if allow_zero else 1):
+        raise ValueError(f"{argument} must be {'>= 0' if allow_zero else '>= 1'}, got {value}.")
+    return int(value)
+
+
+def _euler(rhs, x, u, theta, dt):
+    return x + dt * rhs(x, u, theta)
+
+
+def _rk4(rhs, x, u, theta, dt):
+    k1 = rhs(x, u, theta)
+    k2 = rhs(x + 0.5 * dt * k1, u, theta)
+    k3 = rhs(x + 0.5 * dt * k2, u, theta)
+    k4 = rhs(x + dt * k3, u, theta)
+    return x + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+
+_INTEGRATORS = {"euler": _euler, "rk4": _rk4}
+
+
+class DiscretizedStep:
+    r"""Zero-order-hold discretisation of ``rhs`` with ``n_substeps`` integrator steps.
+
+    With step ``dt = sampling_time / n_substeps`` each sub-step applies explicit Euler,
+    :math:`x \leftarrow x + dt\, r(x)`, or classical RK4,
+    :math:`x \leftarrow x + dt (k_1 + 2k_2 + 2k_3 + k_4) / 6`.
+    """
+
+    def __init__(self, rhs: StepFn, sampling_time: float, method: str, n_substeps: int):
+        if method not in _INTEGRATORS:
+            raise ValueError(f"method must be one of {sorted(_INTEGRATORS)}, got {method!r}.")
+        self.rhs, self.method = rhs, method
+        self.n_substeps = _positive_int("n_substeps", n_substeps)
+        self.dt = float(sampling_time) / self.n_substeps
+        self.__name__ = f"{method}({getattr(rhs, '__name__', 'rhs')})"
+
+    def _key(self):
+        return (self.rhs, self.method, self.n_substeps, self.dt)
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, DiscretizedStep) and other._key() == self._key()
+
+    def __hash__(self) -> int:
+        return hash(self._key())
+
+    def __call__(self, x, u, theta):
+        integrate = _INTEGRATORS[self.method]
+        for _ in range(self.n_substeps):
+            x = integrate(self.rhs, x, u, theta, self.dt)
+        return x
+
+
+class LinearStateSpace:
+    """Step or output map of :meth:`PhysicsModel.linear` (picklable, compared by value)."""
+
+    def __init__(self, n_inputs: int, n_outputs: int, part: str):
+        self.n_inputs, self.n_outputs, self.part = int(n_inputs), int(n_outputs), part
+        self.__name__ = f"linear_{part}"
+
+    def parameter_names(self) -> list[str]:
+        n, m = self.n_outputs, self.n_inputs
+        return (
+            [f"A[{i},{j}]" for i in range(n) for j in range(n)]
+            + [f"B[{i},{j}]" for i in range(n) for j in range(m)]
+            + [f"b[{i}]" for i in range(n)]
+            + [f"D[{i},{j}]" for i in range(n) for j in range(m)]
+        )
+
+    def _matrix(self, theta, prefix, rows, cols):
+        import jax.numpy as jnp
+
+        entries = [[theta[f"{prefix}[{i},{j}]"] for j in range(cols)] for i in range(rows)]
+        return jnp.asarray(entries).reshape(rows, cols)
+
+    def __call__(self, x, u, theta):
+        import jax.numpy as jnp
+
+        n, m = self.n_outputs, self.n_inputs
+        if self.part == "output":
+            return x + self._matrix(theta, "D", n, m) @ u
+        bias = jnp.asarray([theta[f"b[{i}]"] for i in range(n)])
+        return self._matrix(theta, "A", n, n) @ x + self._matrix(theta, "B", n, m) @ u + bias
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, LinearStateSpace) and other._key() == self._key()
+
+    def __hash__(self) -> int:
+        return hash(self._key())
+
+    def _key(self):
+        return (LinearStateSpace, self.n_inputs, self.n_outputs, self.part)

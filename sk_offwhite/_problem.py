@@ -1,0 +1,163 @@
+"""From validated data and user settings to a solved minimisation (the pure core of ``fit``).
+
+Data flow: ``physics`` + ``basis`` -> :class:`~sk_offwhite._rollout.Model` (static
+structure); records -> :class:`~sk_offwhite._segments.Segments`; initial values, free masks
+and bounds per block -> :class:`~sk_offwhite._optim.Problem`; solver -> fitted blocks.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._layout import Layout
+from ._objective import CostWeights
+from ._optim import Problem, SolverResult, levenberg_marquardt, run_optax
+from ._physics import PhysicsModel
+from ._rollout import Model, simulate
+from ._segments import Segments, make_segments
+
+__all__ = [
+    "FittedBlocks",
+    "build_model",
+    "estimate_initial_state",
+    "initial_blocks",
+    "solve",
+]
+
+LM_MAX_FREE = 400
+
+
+class FittedBlocks(NamedTuple):
+    """Fitted decision variables as numpy arrays, with the solver diagnostics."""
+
+    blocks: dict
+    result: SolverResult
+
+
+def build_model(physics: PhysicsModel, basis, delta_states: tuple[int, ...]) -> Model:
+    """Static model structure from the physics and the compiled dictionary (or ``None``)."""
+    return Model(
+        step=physics.step,
+        output=physics.output,
+        parameter_names=physics.parameter_names,
+        delta_states=delta_states if basis is not None else (),
+        basis=None if basis is None else basis.evaluate,
+        inner_names=() if basis is None else tuple(basis.init_params),
+        inequality=physics.inequality,
+        equality=physics.equality,
+    )
+
+
+def _window_initial_states(model, blocks, records, segments, horizon):
+    """Initial states of every segment from a free run of the initial guess."""
+    params = {k: jnp.asarray(v) for k, v in blocks.items() if k != "x0"}
+    x0 = []
+    for r, (u, _) in enumerate(records):
+        start = blocks["x0"][np.flatnonzero(segments.record == r)[0]]
+        n_windows = int(np.sum(segments.record == r))
+        if n_windows == 1:
+            x0.append(start)
+            continue
+        states, _, _ = jax.jit(simulate, static_argnums=0)(model, params, jnp.asarray(start), u)
+        states = np.asarray(states)[::horizon][:n_windows]
+        x0.extend(np.where(np.isfinite(states), states, start))
+    return np.asarray(x0)
+
+
+def initial_blocks(physics, basis, model, records, segments, horizon) -> dict:
+    """Initial value of every block: physics guesses, zero Ω, basis inner values."""
+    blocks = {"theta": physics.parameter_values()}
+    blocks["x0"] = np.tile(physics.x0, (segments.u.shape[0], 1))
+    if model.basis is not None:
+        blocks["omega"] = np.zeros(basis.omega_trainable.shape)
+        blocks.update({k: np.asarray(v, float) for k, v in basis.init_params.items()})
+    if horizon is not None:
+        blocks["x0"] = _window_initial_states(model, blocks, records, segments, horizon)
+    return blocks
+
+
+def free_blocks(physics, basis, model, segments) -> dict:
+    """Boolean mask per block: True where the entry is fitted."""
+    fixed = np.array([p.fixed for p in physics.parameters.values()], dtype=bool)
+    record_start = segments.linked == 0
+    x0_free = np.ones(segments.u.shape[0:1] + (physics.n_states,), dtype=bool)
+    x0_free[record_start] = ~physics.x0_fixed
+    free = {"theta": ~fixed, "x0": x0_free}
+    if model.basis is not None:
+        free["omega"] = np.asarray(basis.omega_trainable, bool)
+        free.update({k: np.asarray(v, bool) for k, v in basis.trainable.items()})
+    return free
+
+
+def bound_blocks(physics, blocks) -> tuple[dict, dict]:
+    """Lower and upper bound per block (physical parameters and initial states only)."""
+    lower = {k: np.full(np.shape(v), -np.inf) for k, v in blocks.items()}
+    upper = {k: np.full(np.shape(v), np.inf) for k, v in blocks.items()}
+    lower["theta"], upper["theta"] = physics.parameter_bounds()
+    lower["x0"][:], upper["x0"][:] = physics.x0_bounds
+    return lower, upper
+
+
+def make_problem(layout, blocks, free, bounds, segments, weights) -> tuple[Problem, jax.Array]:
+    """Assemble the dynamic :class:`Problem` and the initial free vector."""
+    free_index = np.flatnonzero(layout.flatten(free))
+    base = layout.flatten(blocks)
+    lower, upper = (layout.flatten(b)[free_index] for b in bounds)
+    omega_free = free.get("omega", np.zeros((0, 0)))
+    problem = Problem(
+        Segments(*(jnp.asarray(a, float) for a in segments)),
+        jnp.asarray(base),
+        jnp.asarray(free_index),
+        jnp.asarray(lower),
+        jnp.asarray(upper),
+        jnp.asarray(omega_free, float),
+        CostWeights(*(jnp.asarray(float(w)) for w in weights)),
+    )
+    return problem, jnp.asarray(np.clip(base[free_index], lower, upper))
+
+
+def solve(model, layout, problem, free0, *, solver, optimizer, max_iter, tol, verbose):
+    """Run the chosen solver.
+
+    ``'auto'`` picks Levenberg-Marquardt (forward-mode Jacobians) up to ``LM_MAX_FREE`` free
+    variables and the optax loop (reverse-mode gradients) beyond.
+    """
+    use_lm = solver == "lm" or (solver == "auto" and free0.shape[0] <= LM_MAX_FREE)
+    if use_lm:
+        return levenberg_marquardt(
+            free0, problem, model, layout, max_iter=max_iter, tol=tol, verbose=verbose
+        )
+    return run_optax(
+        free0, problem, model, layout, optimizer, max_iter=max_iter, tol=tol, verbose=verbose
+    )
+
+
+def fitted_blocks(layout, problem, result: SolverResult) -> dict:
+    """Numpy blocks of the solution (fixed entries at their base value)."""
+    full = np.asarray(problem.base).copy()
+    full[np.asarray(problem.free_index)] = result.free
+    return layout.unflatten(full)
+
+
+def estimate_initial_state(model, blocks, u, z, x0_guess, x0_free, *, max_iter=100):
+    """Initial state that best explains ``z`` with every other block fixed (as MATLAB's
+    ``compare`` does): a small Levenberg-Marquardt problem over ``x0`` only."""
+    segments = make_segments([(u, z)], None)
+    trial = dict(blocks, x0=np.asarray(x0_guess, float).reshape(1, -1))
+    free = {k: np.zeros(np.shape(v), bool) for k, v in trial.items()}
+    free["x0"] = np.asarray(x0_free, bool).reshape(1, -1)
+    bounds = (
+        {k: np.full(np.shape(v), -np.inf) for k, v in trial.items()},
+        {k: np.full(np.shape(v), np.inf) for k, v in trial.items()},
+    )
+    layout = Layout.from_arrays(trial)
+    weights = (0.0, 0.0, 0.0, 0.0, 1.0)
+    problem, free0 = make_problem(layout, trial, free, bounds, segments, weights)
+    if free0.shape[0] == 0:
+        return trial["x0"][0]
+    result = levenberg_marquardt(free0, problem, model, layout, max_iter=max_iter, tol=1e-10)
+    return fitted_blocks(layout, problem, result)["x0"][0]

@@ -1,0 +1,98 @@
+r"""Pure JAX simulation of the grey-box model.
+
+The model adds a black-box correction to selected state equations,
+
+.. math::
+
+    x_{k+1} = f(x_k, u_k; \theta) + S\, \delta(x_k, u_k; \omega), \qquad
+    \delta_i = \sum_j \Omega_{ij}\, \Phi_{ij}([x_k; u_k]), \qquad
+    z_k = h(x_k, u_k; \theta),
+
+where :math:`S` scatters the corrected equations (``delta_states``) into the state and
+:math:`\Phi` is the dictionary (a pysindy library or a ridge basis, see ``_basis``).
+Simulation runs the recursion with ``jax.lax.scan`` (a *multi-step* prediction: the model
+feeds back its own states, never the measurements).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import jax
+import jax.numpy as jnp
+
+__all__ = ["Model", "correction", "model_step", "simulate", "theta_dict"]
+
+
+@dataclass(frozen=True)
+class Model:
+    """Static structure of the grey-box model (hashable, a ``jit`` static argument).
+
+    Attributes
+    ----------
+    step, output : callable
+        The physics ``f(x, u, theta)`` and ``h(x, u, theta)``.
+    parameter_names : tuple of str
+        Names of all physical parameters, the order of the ``theta`` vector.
+    delta_states : tuple of int
+        State equations that receive the correction (empty: physics only).
+    basis : callable or None
+        ``basis(inner_params, v) -> (len(delta_states), m)`` dictionary evaluation.
+    inner_names : tuple of str
+        Names of the basis' own trainable blocks (``W``, ``B`` of a ridge basis).
+    inequality, equality : callable or None
+        Physics constraints ``p(x, u, theta) <= 0`` and ``q(x, u, theta) = 0``.
+    """
+
+    step: Callable
+    output: Callable
+    parameter_names: tuple[str, ...]
+    delta_states: tuple[int, ...] = ()
+    basis: Callable | None = None
+    inner_names: tuple[str, ...] = ()
+    inequality: Callable | None = None
+    equality: Callable | None = None
+
+
+def theta_dict(model: Model, theta) -> dict:
+    """Map the parameter vector to the ``{name: scalar}`` dict the physics functions take."""
+    return {name: theta[i] for i, name in enumerate(model.parameter_names)}
+
+
+def correction(model: Model, params: dict, x, u):
+    r"""Black-box term :math:`S\delta(x, u; \omega)` added to the state update."""
+    if model.basis is None or not model.delta_states:
+        return jnp.zeros_like(x)
+    inner = {name: params[name] for name in model.inner_names}
+    features = model.basis(inner, jnp.concatenate([x, u]))
+    delta = jnp.sum(params["omega"] * features, axis=1)
+    return jnp.zeros_like(x).at[jnp.asarray(model.delta_states)].add(delta)
+
+
+def model_step(model: Model, params: dict, x, u):
+    r"""One step of the augmented model: :math:`f(x, u; \theta) + S\delta(x, u; \omega)`."""
+    physics = model.step(x, u, theta_dict(model, params["theta"]))
+    return jnp.asarray(physics, dtype=x.dtype).reshape(x.shape) + correction(model, params, x, u)
+
+
+def simulate(model: Model, params: dict, x0, u):
+    r"""Free-run simulation from ``x0`` over the input sequence ``u`` of shape ``(L, n_u)``.
+
+    Returns
+    -------
+    states : array of shape (L, n_x)
+        :math:`\hat x_0, \dots, \hat x_{L-1}`.
+    outputs : array of shape (L, n_z)
+        :math:`\hat z_k = h(\hat x_k, u_k; \theta)`.
+    final_state : array of shape (n_x,)
+        :math:`\hat x_L`, used to link consecutive shooting windows.
+    """
+    theta = theta_dict(model, params["theta"])
+
+    def advance(x, u_k):
+        z_k = jnp.atleast_1d(model.output(x, u_k, theta))
+        return model_step(model, params, x, u_k), (x, z_k)
+
+    final_state, (states, outputs) = jax.lax.scan(advance, x0, u)
+    return states, outputs, final_state

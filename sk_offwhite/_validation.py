@@ -1,0 +1,98 @@
+"""Validation of user data and of the physics functions, with errors that name the argument."""
+
+from __future__ import annotations
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from sklearn.utils import check_array
+
+from ._physics import PhysicsModel
+
+__all__ = ["as_records", "check_physics", "is_experiment_list"]
+
+
+def is_experiment_list(data) -> bool:
+    """True for a list/tuple of 2-D arrays: several experiments rather than rows."""
+    return (
+        isinstance(data, list | tuple)
+        and len(data) > 0
+        and all(isinstance(item, np.ndarray) and item.ndim == 2 for item in data)
+    )
+
+
+def _check_one(name: str, values, ensure_2d: bool = True) -> np.ndarray:
+    values = check_array(
+        values,
+        dtype=np.float64,
+        ensure_2d=ensure_2d,
+        ensure_all_finite=True,
+        input_name=name,
+        ensure_min_samples=1,
+        copy=False,
+    )
+    return values if values.ndim == 2 else values.reshape(-1, 1)
+
+
+def as_records(u, z) -> list[tuple[np.ndarray, np.ndarray]]:
+    """Validate a list of experiments ``[(u_e, z_e)]`` (each 2-D, finite, equal lengths)."""
+    if not is_experiment_list(u) or len(u) != len(z):
+        raise ValueError(
+            "u and z must both be lists of 2-D arrays with one entry per experiment; got "
+            f"{type(u).__name__} of length {len(u)} and {type(z).__name__} of length {len(z)}."
+        )
+    records = [
+        (_check_one(f"u[{e}]", ue), _check_one(f"z[{e}]", ze, False))
+        for e, (ue, ze) in enumerate(zip(u, z, strict=True))
+    ]
+    for e, (ue, ze) in enumerate(records):
+        if ue.shape[0] != ze.shape[0]:
+            raise ValueError(f"u[{e}] has {ue.shape[0]} samples but z[{e}] has {ze.shape[0]}.")
+    widths = {(ue.shape[1], ze.shape[1]) for ue, ze in records}
+    if len(widths) != 1:
+        raise ValueError(f"all experiments must have the same numbers of columns, got {widths}.")
+    return records
+
+
+def _traceable(name: str, fun, *args):
+    try:
+        return jax.eval_shape(fun, *args)
+    except Exception as error:  # any failure to trace is the user's function, re-raised
+        raise TypeError(
+            f"{name} cannot be evaluated with JAX ({type(error).__name__}: {error}). "
+            "Write it with jax.numpy operations so it can be simulated and differentiated."
+        ) from error
+
+
+def _check_result(name: str, value, expected: tuple[int, ...], where: str) -> None:
+    shape = tuple(np.shape(value))
+    if shape != expected and not (expected == (1,) and shape == ()):
+        raise ValueError(f"{name} returned shape {shape}, expected {expected} ({where}).")
+
+
+def check_physics(physics: PhysicsModel, n_inputs: int, n_outputs: int, u0) -> None:
+    """Check dimensions, traceability, shapes and finiteness at the initial guess."""
+    if physics.n_inputs != n_inputs:
+        raise ValueError(f"u has {n_inputs} column(s) but physics.n_inputs is {physics.n_inputs}.")
+    x0 = jnp.asarray(physics.x0)
+    u0 = jnp.asarray(u0)
+    theta = {k: jnp.asarray(p.value) for k, p in physics.parameters.items()}
+    where = "at the initial guess of x0 and the parameters"
+    checks = [
+        ("physics.step", physics.step, (physics.n_states,)),
+        ("physics.output", physics.output, (n_outputs,)),
+    ]
+    for name, fun, expected in checks:
+        _check_result(name, _traceable(name, fun, x0, u0, theta), expected, where)
+        value = np.asarray(fun(x0, u0, theta))
+        if not np.all(np.isfinite(value)):
+            raise ValueError(
+                f"{name} returned non-finite values {value} {where}; "
+                "change physics.x0 or the parameter values."
+            )
+    for name, fun in (
+        ("physics.inequality", physics.inequality),
+        ("physics.equality", physics.equality),
+    ):
+        if fun is not None:
+            _traceable(name, fun, x0, u0, theta)
