@@ -1,0 +1,72 @@
+"""Shared synthetic systems for the tests (noise-free unless stated)."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from sk_offwhite import Parameter, PhysicsModel
+
+TANKS_TRUE = {"k1": 0.076, "k2": 0.027, "k3": 0.042, "k4": 0.039}
+TANKS_X0 = np.array([3.5, 5.2])
+
+
+def safe_sqrt(x):
+    return jnp.sqrt(jnp.maximum(x, 1e-6))
+
+
+def tanks_step(x, u, theta):
+    """Cascaded tanks, eq. (21) of the paper without noise, Ts = 4 s."""
+    ts = 4.0
+    return jnp.stack(
+        [
+            x[0] + ts * (-theta["k1"] * safe_sqrt(x[0]) + theta["k4"] * u[0]),
+            x[1] + ts * (theta["k2"] * safe_sqrt(x[0]) - theta["k3"] * safe_sqrt(x[1])),
+        ]
+    )
+
+
+def multisine(n_samples, rng, band=0.0144, ts=4.0, mean=2.8, std=1.0):
+    freqs = np.fft.rfftfreq(n_samples, ts)
+    excited = (freqs > 0) & (freqs < band)
+    spectrum = np.zeros(freqs.shape, complex)
+    spectrum[excited] = np.exp(1j * rng.uniform(0, 2 * np.pi, excited.sum()))
+    signal = np.fft.irfft(spectrum, n_samples)
+    return (mean + std * signal / signal.std())[:, None]
+
+
+def simulate_numpy(step, theta, x0, u):
+    with jax.enable_x64(True):
+        theta = {k: jnp.asarray(v) for k, v in theta.items()}
+        x, outputs = jnp.asarray(x0, float), []
+        for u_k in u:
+            outputs.append(np.asarray(x))
+            x = step(x, jnp.asarray(u_k), theta)
+    return np.asarray(outputs)
+
+
+def tanks_physics(init=0.05, x0=None):
+    bounds = (1e-6, None)
+    return PhysicsModel(
+        tanks_step,
+        [1],
+        {
+            "k1": Parameter(init, bounds),
+            "k2": Parameter(init, bounds),
+            "k3": Parameter(init, bounds),
+            "k4": Parameter(TANKS_TRUE["k4"], fixed=True),
+        },
+        n_states=2,
+        n_inputs=1,
+        x0=x0,
+        x0_bounds=(0.0, None),
+        state_names=("x1", "x2"),
+    )
+
+
+@pytest.fixture(scope="session")
+def tanks_data():
+    """Noise-free cascaded-tanks record (u, z, states) from the true parameters."""
+    u = multisine(1024, np.random.default_rng(0))
+    states = simulate_numpy(tanks_step, TANKS_TRUE, TANKS_X0, u)
+    return u, states[:, 1:2], states
