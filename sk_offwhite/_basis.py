@@ -27,6 +27,7 @@ jit-able, vmap-able and differentiable with finite gradients everywhere
 from __future__ import annotations
 
 import copy
+import functools
 import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -158,7 +159,49 @@ def compile_basis(
     n_delta = _check_n_delta(n_delta)
     if isinstance(library, RidgeBasis):
         return _compile_ridge(library, features, n_delta, random_state)
-    return _compile_pysindy(library, features, n_delta)
+    key = _library_key(library, features, n_delta)
+    if key is None:
+        return _compile_pysindy(library, features, n_delta)
+    if key not in _COMPILED_LIBRARIES:
+        if len(_COMPILED_LIBRARIES) >= _CACHE_SIZE:
+            _COMPILED_LIBRARIES.pop(next(iter(_COMPILED_LIBRARIES)))
+        _COMPILED_LIBRARIES[key] = _compile_pysindy(library, features, n_delta)
+    return _COMPILED_LIBRARIES[key]
+
+
+# Equal library descriptions share one CompiledBasis, hence one ``evaluate`` object, so the
+# jitted rollout (whose static argument holds ``evaluate``) is compiled once for all clones
+# of an estimator (cross-validation, grid searches) instead of once per fit.
+_CACHE_SIZE = 64
+_COMPILED_LIBRARIES: dict = {}
+
+
+def _fingerprint(value: Any) -> Any:
+    """Hashable description of a library's configuration (functions by identity)."""
+    if value is None or isinstance(value, (str, int, float, bool, np.generic)):
+        return value
+    if isinstance(value, np.ndarray):
+        return (value.shape, value.dtype.str, value.tobytes())
+    if isinstance(value, (list, tuple)):
+        return tuple(_fingerprint(item) for item in value)
+    if isinstance(value, dict):
+        return tuple(sorted((str(k), _fingerprint(v)) for k, v in value.items()))
+    if hasattr(value, "get_params"):
+        settings = {k: v for k, v in vars(value).items() if not k.endswith("_")}
+        return (type(value), _fingerprint(settings))
+    if callable(value):
+        return value
+    raise TypeError(f"cannot fingerprint {type(value).__name__}")
+
+
+def _library_key(library: Any, features: tuple[str, ...], n_delta: int) -> tuple | None:
+    """Cache key of a pysindy library, or ``None`` when it cannot be described."""
+    try:
+        key = (_fingerprint(library), features, n_delta)
+        hash(key)
+    except TypeError:
+        return None
+    return key
 
 
 def evaluate_matrix(
@@ -641,7 +684,7 @@ def _compile_ridge(
     }
     omega = _as_mask(basis.omega_trainable, (n_delta, m), "omega_trainable")
     names = tuple(f"{act}(r{j})" for j, act in enumerate(acts))
-    evaluate = jax.jit(_ridge_evaluate(acts, n))
+    evaluate = _jitted_ridge_evaluate(acts, n)
     return CompiledBasis(names, {"W": W0, "B": B0}, trainable, omega, evaluate, features)
 
 
@@ -701,6 +744,12 @@ def _activation_groups(acts: tuple[str, ...]) -> tuple[list, np.ndarray | None]:
     return groups, inverse
 
 
+@functools.lru_cache(maxsize=64)
+def _jitted_ridge_evaluate(acts: tuple[str, ...], n_features: int) -> Callable:
+    """One jitted ``evaluate`` per activation tuple and input size (shared by clones)."""
+    return jax.jit(_ridge_evaluate(acts, n_features))
+
+
 def _ridge_evaluate(acts: tuple[str, ...], n_features: int) -> Callable:
     """Build ``evaluate(params, v) = σ(einsum('ikj,k->ij', W, v) + B)``."""
     groups, inverse = _activation_groups(acts)
@@ -712,8 +761,8 @@ def _ridge_evaluate(acts: tuple[str, ...], n_features: int) -> Callable:
         z = jnp.einsum("ikj,k->ij", W, v, precision=jax.lax.Precision.HIGHEST) + B
         if len(groups) == 1:
             return groups[0][0](z)
-        out = jnp.concatenate([fn(z[:, idx]) for fn, idx in groups], axis=1)
-        return out if inverse is None else out[:, inverse]
+        out = jnp.concatenate([fn(z[:, jnp.asarray(idx.tolist())]) for fn, idx in groups], axis=1)
+        return out if inverse is None else out[:, jnp.asarray(inverse.tolist())]
 
     return evaluate
 

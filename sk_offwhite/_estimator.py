@@ -14,25 +14,21 @@ from sklearn.base import BaseEstimator, RegressorMixin, _fit_context, clone
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.metrics import r2_score
 from sklearn.utils._param_validation import Interval, StrOptions
-from sklearn.utils.validation import check_is_fitted, validate_data
+from sklearn.utils.validation import _check_feature_names, check_is_fitted
 
 from ._basis import compile_basis
 from ._equations import format_equations
-from ._layout import Layout
 from ._physics import PhysicsModel
 from ._problem import (
-    bound_blocks,
+    SolverOptions,
     build_model,
     estimate_initial_state,
-    fitted_blocks,
-    free_blocks,
-    initial_blocks,
-    make_problem,
-    solve,
+    fit_records,
+    initial_state_guess,
 )
 from ._rollout import simulate
-from ._segments import make_segments, split_at_gaps
-from ._validation import as_records, check_physics, is_experiment_list
+from ._segments import split_at_gaps
+from ._validation import as_records, check_inputs, check_pair, check_physics, is_experiment_list
 
 __all__ = ["GreyBoxSparseRegressor"]
 
@@ -65,11 +61,31 @@ def expected_failed_checks(estimator=None) -> dict[str, str]:
 
 
 def _safe_clone(value):
-    """``sklearn.clone`` for estimators, ``deepcopy`` for what clone refuses (CustomLibrary)."""
+    """``sklearn.clone`` for estimators, ``deepcopy`` for what clone refuses.
+
+    pysindy's ``CustomLibrary`` renames its constructor arguments, so ``clone`` fails on it.
+    """
     try:
         return clone(value, safe=False)
-    except (RuntimeError, TypeError):
+    except (AttributeError, RuntimeError, TypeError):
         return copy.deepcopy(value)
+
+
+def _short_repr(value) -> str:
+    try:
+        return repr(value)
+    except AttributeError:
+        return f"{type(value).__name__}(...)"
+
+
+def _nested_params(value) -> dict:
+    """``value.get_params()`` where it works (not on pysindy's ``CustomLibrary``)."""
+    if not hasattr(value, "get_params") or isinstance(value, type):
+        return {}
+    try:
+        return value.get_params(deep=True)
+    except (AttributeError, TypeError):
+        return {}
 
 
 class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
@@ -229,6 +245,22 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         self.random_state = random_state
 
     # ------------------------------------------------------------------ scikit-learn glue
+    def get_params(self, deep: bool = True) -> dict:
+        """Estimator parameters; nested ones of the library where it exposes them."""
+        params = super().get_params(deep=False)
+        if deep:
+            for name, value in list(params.items()):
+                params.update({f"{name}__{k}": v for k, v in _nested_params(value).items()})
+        return params
+
+    def __repr__(self, N_CHAR_MAX: int = 700) -> str:
+        try:
+            return super().__repr__(N_CHAR_MAX)
+        except AttributeError:  # a library whose get_params is broken (CustomLibrary)
+            changed = {k: v for k, v in self.get_params(deep=False).items() if v is not None}
+            shown = ", ".join(f"{k}={_short_repr(v)}" for k, v in changed.items())
+            return f"{type(self).__name__}({shown})"
+
     def __sklearn_clone__(self):
         params = {k: _safe_clone(v) for k, v in self.get_params(deep=False).items()}
         return type(self)(**params)
@@ -253,9 +285,9 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
             self._check_widths(records[0][0].shape[1], reset)
             self._z_was_1d = False if reset else self._z_was_1d
             return records
-        u, z = validate_data(
-            self, u, z, reset=reset, multi_output=True, y_numeric=True, dtype=np.float64
-        )
+        _check_feature_names(self, u, reset=reset)
+        u, z = check_pair(u, z)
+        self._check_widths(u.shape[1], reset)
         if reset:
             self._z_was_1d = z.ndim == 1
         return split_at_gaps(u, z.reshape(z.shape[0], -1), sample_index)
@@ -310,8 +342,8 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         with jax.enable_x64(True):
             check_physics(physics, n_inputs, n_outputs, records[0][0][0])
             basis, model = self._compile(physics)
-            blocks, result = self._solve(physics, basis, model, records)
-        self._store(physics, basis, model, blocks, result, records, n_outputs)
+            blocks, result, segments = self._solve(physics, basis, model, records)
+        self._store(physics, basis, model, blocks, result, segments, n_outputs)
         return self
 
     def _check_record_lengths(self, records) -> None:
@@ -333,29 +365,15 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         return basis, build_model(physics, basis, delta_states)
 
     def _solve(self, physics, basis, model, records):
-        segments = make_segments(records, self.horizon)
-        blocks = initial_blocks(physics, basis, model, records, segments, self.horizon)
-        free = free_blocks(physics, basis, model, segments)
-        layout = Layout.from_arrays(blocks)
         weights = (self.gamma, self.lam, self.nu, self.shooting_weight, self.l1_smoothing)
-        problem, free0 = make_problem(
-            layout, blocks, free, bound_blocks(physics, blocks), segments, weights
+        options = SolverOptions(
+            self.solver, self._optimizer(), self.max_iter, self.tol, self.verbose
         )
-        if free0.shape[0] == 0:
-            raise ValueError("nothing to fit: every parameter and initial state is fixed.")
-        result = solve(
-            model,
-            layout,
-            problem,
-            free0,
-            solver=self.solver,
-            optimizer=self._optimizer(),
-            max_iter=self.max_iter,
-            tol=self.tol,
-            verbose=self.verbose,
+        blocks, result, segments = fit_records(
+            physics, basis, model, records, self.horizon, weights, options
         )
         self._warn_if_unfinished(result)
-        return fitted_blocks(layout, problem, result), result
+        return blocks, result, segments
 
     def _optimizer(self):
         if self.optimizer is not None:
@@ -377,13 +395,12 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
                 stacklevel=3,
             )
 
-    def _store(self, physics, basis, model, blocks, result, records, n_outputs) -> None:
+    def _store(self, physics, basis, model, blocks, result, segments, n_outputs) -> None:
         self.physics_ = physics
         self.n_outputs_ = n_outputs
         self.theta_ = np.asarray(blocks["theta"], float)
         self.parameters_ = dict(zip(physics.parameter_names, self.theta_.tolist(), strict=True))
-        starts = make_segments(records, self.horizon).linked == 0
-        self.initial_states_ = np.asarray(blocks["x0"], float)[starts]
+        self.initial_states_ = np.asarray(blocks["x0"], float)[segments.linked == 0]
         self.x0_ = self.initial_states_[0].copy()
         omega = np.asarray(blocks.get("omega", np.zeros((0, 0))), float)
         self.coef_ = np.where(np.abs(omega) <= self.threshold, 0.0, omega)
@@ -426,8 +443,9 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         if z_init is None or len(z_init) == 0:
             return self.x0_
         n = len(z_init)
+        guess = initial_state_guess(self.x0_, self.physics_.output, z_init[0])
         return estimate_initial_state(
-            model, self._fitted_blocks(), u[:n], z_init, self.x0_, np.ones_like(self.x0_, bool)
+            model, self._fitted_blocks(), u[:n], z_init, guess, np.ones_like(self.x0_, bool)
         )
 
     def predict(self, u, *, x0=None, z_init=None):
@@ -449,7 +467,9 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         if is_experiment_list(u):
             return [self.predict(ue, x0=x0) for ue in u]
-        u = validate_data(self, u, reset=False, dtype=np.float64)
+        _check_feature_names(self, u, reset=False)
+        u = check_inputs(u)
+        self._check_widths(u.shape[1], reset=False)
         if z_init is not None:
             z_init = np.asarray(z_init, float).reshape(len(z_init), -1)
         with jax.enable_x64(True):

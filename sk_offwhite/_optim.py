@@ -125,9 +125,10 @@ def levenberg_marquardt(
 ) -> SolverResult:
     r"""Projected Levenberg-Marquardt on :math:`\|r(\cdot)\|^2`.
 
-    Stops when an accepted step lowers the cost by less than ``tol`` (relative), when the
-    gradient :math:`J^T r` vanishes, or when the damping grows past ``1e10`` (no descent
-    step exists: a stationary point up to numerical precision).
+    Stops when a nearly undamped (Gauss-Newton, damping below ``1``) accepted step lowers
+    the cost by less than ``tol`` (relative), or when the damping grows past ``1e10`` (no
+    descent step exists: a stationary point up to numerical precision). A small decrease
+    under heavy damping only means the step was short, not that the fit has converged.
     """
     n_residuals = int(free_residuals(free0, problem, model, layout).shape[0])
     forward = free0.shape[0] <= n_residuals
@@ -135,12 +136,13 @@ def levenberg_marquardt(
     state = _lm_init(free0, problem, **static)
     history, message, converged = [float(state.cost)], "max_iter reached", False
     for iteration in range(1, max_iter + 1):
-        previous = float(state.cost)
+        previous, damping = float(state.cost), float(state.damping)
         state, accepted = _lm_iteration(state, problem, **static)
         if bool(accepted):
             history.append(float(state.cost))
             _report(verbose, iteration, history[-1], float(state.damping))
-            if previous - history[-1] <= tol * max(previous, 1e-300):
+            small = previous - history[-1] <= tol * max(previous, 1e-300)
+            if small and damping < 1.0:
                 converged, message = True, "relative cost decrease below tol"
                 break
         elif float(state.damping) > 1e10:

@@ -68,13 +68,34 @@ def _window_initial_states(model, blocks, records, segments, horizon):
     return np.asarray(x0)
 
 
+def initial_state_guess(base, output, z_first, fixed=None) -> np.ndarray:
+    """``base`` with the directly measured, non-fixed states set to the first measurement.
+
+    Applies when the output map is :class:`~sk_offwhite._physics.MeasuredStates`.
+    """
+    guess = np.array(base, dtype=float)
+    indices = getattr(output, "indices", None)
+    if indices is not None:
+        measured = np.asarray(indices)
+        free = np.ones(measured.shape, bool) if fixed is None else ~fixed[measured]
+        guess[measured[free]] = np.asarray(z_first)[free]
+    return guess
+
+
 def initial_blocks(physics, basis, model, records, segments, horizon) -> dict:
-    """Initial value of every block: physics guesses, zero Ω, basis inner values."""
+    """Initial value of every block: physics guesses, zero Ω, basis inner values.
+
+    Each record starts from ``physics.x0`` with its measured states set to the record's
+    first measurement (:func:`initial_state_guess`).
+    """
     blocks = {"theta": physics.parameter_values()}
-    blocks["x0"] = np.tile(physics.x0, (segments.u.shape[0], 1))
+    guesses = [
+        initial_state_guess(physics.x0, physics.output, z[0], physics.x0_fixed) for _, z in records
+    ]
     if model.basis is not None:
         blocks["omega"] = np.zeros(basis.omega_trainable.shape)
         blocks.update({k: np.asarray(v, float) for k, v in basis.init_params.items()})
+    blocks["x0"] = np.stack([guesses[r] for r in segments.record])
     if horizon is not None:
         blocks["x0"] = _window_initial_states(model, blocks, records, segments, horizon)
     return blocks
@@ -118,6 +139,34 @@ def make_problem(layout, blocks, free, bounds, segments, weights) -> tuple[Probl
         CostWeights(*(jnp.asarray(float(w)) for w in weights)),
     )
     return problem, jnp.asarray(np.clip(base[free_index], lower, upper))
+
+
+class SolverOptions(NamedTuple):
+    """Solver settings passed through from the estimator."""
+
+    solver: str
+    optimizer: object
+    max_iter: int
+    tol: float
+    verbose: int
+
+
+def fit_records(physics, basis, model, records, horizon, weights, options: SolverOptions):
+    """Minimise the cost over all records: the pure core of ``fit``.
+
+    Returns the fitted blocks (numpy), the :class:`SolverResult` and the segments.
+    """
+    segments = make_segments(records, horizon)
+    blocks = initial_blocks(physics, basis, model, records, segments, horizon)
+    free = free_blocks(physics, basis, model, segments)
+    layout = Layout.from_arrays(blocks)
+    problem, free0 = make_problem(
+        layout, blocks, free, bound_blocks(physics, blocks), segments, weights
+    )
+    if free0.shape[0] == 0:
+        raise ValueError("nothing to fit: every parameter and initial state is fixed.")
+    result = solve(model, layout, problem, free0, **options._asdict())
+    return fitted_blocks(layout, problem, result), result, segments
 
 
 def solve(model, layout, problem, free0, *, solver, optimizer, max_iter, tol, verbose):

@@ -9,7 +9,7 @@ from sklearn.utils import check_array
 
 from ._physics import PhysicsModel
 
-__all__ = ["as_records", "check_physics", "is_experiment_list"]
+__all__ = ["as_records", "check_inputs", "check_pair", "check_physics", "is_experiment_list"]
 
 
 def is_experiment_list(data) -> bool:
@@ -32,6 +32,22 @@ def _check_one(name: str, values, ensure_2d: bool = True) -> np.ndarray:
         copy=False,
     )
     return values if values.ndim == 2 else values.reshape(-1, 1)
+
+
+def check_inputs(u) -> np.ndarray:
+    """Validated input array ``u`` of shape ``(n_samples, n_inputs)``, finite, float64."""
+    return check_array(u, dtype=np.float64, ensure_all_finite=True, input_name="u")
+
+
+def check_pair(u, z) -> tuple[np.ndarray, np.ndarray]:
+    """Validated ``u`` and ``z`` (1-D or 2-D) with one row each per sample."""
+    u = check_inputs(u)
+    z = check_array(z, dtype=np.float64, ensure_2d=False, ensure_all_finite=True, input_name="z")
+    if z.ndim > 2:
+        raise ValueError(f"z must be 1-D or 2-D, got an array of shape {z.shape}.")
+    if u.shape[0] != z.shape[0]:
+        raise ValueError(f"u has {u.shape[0]} samples but z has {z.shape[0]}.")
+    return u, z
 
 
 def as_records(u, z) -> list[tuple[np.ndarray, np.ndarray]]:

@@ -1,0 +1,33 @@
+"""Data sets: the measured Cascaded Tanks benchmark and synthetic systems with undeclared effects.
+
+``load_cascaded_tanks`` returns the benchmark records and ``cascaded_tanks_physics`` the
+physical model of its eq. (21). The ``make_*`` generators simulate systems whose declared
+physics misses one effect (the ``hidden_effect`` of the returned Bunch), for checking that a
+sparse black-box correction finds what the physics is missing.
+"""
+
+from sk_offwhite.datasets._cascaded_tanks import (
+    cascaded_tanks_physics,
+    load_cascaded_tanks,
+    safe_sqrt,
+)
+from sk_offwhite.datasets._synthetic import (
+    make_cascaded_tanks,
+    make_friction_oscillator,
+    make_leaky_tank,
+    make_saturating_actuator,
+    make_vehicle_lateral,
+    vehicle_dictionary_library,
+)
+
+__all__ = [
+    "cascaded_tanks_physics",
+    "load_cascaded_tanks",
+    "make_cascaded_tanks",
+    "make_friction_oscillator",
+    "make_leaky_tank",
+    "make_saturating_actuator",
+    "make_vehicle_lateral",
+    "safe_sqrt",
+    "vehicle_dictionary_library",
+]

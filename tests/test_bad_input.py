@@ -1,0 +1,168 @@
+"""Every kind of bad input raises a clear error that names the offending argument."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pysindy as ps
+import pytest
+from conftest import TANKS_TRUE, tanks_physics, tanks_step
+
+from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel
+
+
+@pytest.fixture
+def data(tanks_data):
+    u, z, _ = tanks_data
+    return u[:200].copy(), z[:200].copy()
+
+
+def _fit(u, z, **params):
+    params = {"max_iter": 5, **params}
+    return GreyBoxSparseRegressor(tanks_physics(), **params).fit(u, z)
+
+
+def _physics(step, output=(1,), n_states=2, **kwargs):
+    parameters = {k: Parameter(v) for k, v in TANKS_TRUE.items()}
+    return PhysicsModel(step, list(output), parameters, n_states, 1, x0=[5.0, 5.0], **kwargs)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_input_names_u(data, bad):
+    u, z = data
+    u[17, 0] = bad
+    with pytest.raises(ValueError, match=r"u .*(NaN|infinity)"):
+        _fit(u, z)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_non_finite_output_names_z(data, bad):
+    u, z = data
+    z[3, 0] = bad
+    with pytest.raises(ValueError, match=r"z .*(NaN|infinity)"):
+        _fit(u, z)
+
+
+def test_mismatched_lengths(data):
+    u, z = data
+    with pytest.raises(ValueError, match="u has 200 samples but z has 199"):
+        _fit(u, z[:-1])
+
+
+def test_three_dimensional_input_is_rejected(data):
+    u, z = data
+    with pytest.raises(ValueError, match="Found array with dim 3"):
+        _fit(u[:, :, None], z)
+
+
+def test_input_columns_must_match_the_physics(data):
+    u, z = data
+    with pytest.raises(ValueError, match=r"u has 2 column\(s\) but physics.n_inputs is 1"):
+        _fit(np.hstack([u, u]), z)
+
+
+def test_output_columns_must_match_the_physics(data):
+    u, z = data
+    with pytest.raises(ValueError, match=r"physics.output returned shape \(1,\), expected \(2,\)"):
+        _fit(u, np.hstack([z, z]))
+
+
+def test_step_of_the_wrong_shape_is_named(data):
+    u, z = data
+    physics = _physics(lambda x, u, theta: x[:1] * theta["k1"])
+    with pytest.raises(ValueError, match=r"physics.step returned shape \(1,\), expected \(2,\)"):
+        GreyBoxSparseRegressor(physics).fit(*data)
+
+
+def test_step_with_non_finite_values_at_the_initial_guess(data):
+    physics = _physics(lambda x, u, theta: jnp.log(x - 10.0) * theta["k1"])
+    with pytest.raises(ValueError, match="physics.step returned non-finite values"):
+        GreyBoxSparseRegressor(physics).fit(*data)
+
+
+def test_step_that_jax_cannot_trace_is_named(data):
+    def numpy_step(x, u, theta):
+        return np.array([float(x[0]) * theta["k1"], float(x[1])])
+
+    with pytest.raises(TypeError, match="physics.step cannot be evaluated with JAX"):
+        GreyBoxSparseRegressor(_physics(numpy_step)).fit(*data)
+
+
+def test_horizon_longer_than_the_data(data):
+    with pytest.raises(ValueError, match=r"horizon=500 is longer than the data \(200 samples\)"):
+        _fit(*data, horizon=500)
+
+
+@pytest.mark.parametrize(
+    ("name", "value"),
+    [
+        ("gamma", -1.0),
+        ("lam", -0.1),
+        ("nu", -2.0),
+        ("horizon", 0),
+        ("max_iter", 0),
+        ("threshold", -1e-3),
+        ("l1_smoothing", 0.0),
+        ("solver", "newton"),
+        ("tol", -1.0),
+    ],
+)
+def test_invalid_hyperparameters_name_themselves(data, name, value):
+    with pytest.raises(ValueError, match=f"'{name}' parameter of GreyBoxSparseRegressor"):
+        _fit(*data, **{name: value})
+
+
+def test_a_single_sample_cannot_be_simulated(data):
+    u, z = data
+    with pytest.raises(ValueError, match="at least 2 consecutive samples"):
+        _fit(u[:1], z[:1])
+
+
+def test_delta_states_out_of_range(data):
+    with pytest.raises(ValueError, match=r"delta_states must be indices in \[0, 2\)"):
+        _fit(*data, library=ps.PolynomialLibrary(degree=1), delta_states=[2])
+
+
+def test_unsupported_library_is_rejected(data):
+    pde = ps.PDELibrary(derivative_order=1, spatial_grid=np.linspace(0, 1, 10))
+    with pytest.raises(TypeError, match="PDELibrary"):
+        _fit(*data, library=pde)
+    with pytest.raises(TypeError, match="str"):
+        _fit(*data, library="poly")
+
+
+def test_experiment_lists_must_pair_up(data):
+    u, z = data
+    with pytest.raises(ValueError, match="one entry per experiment"):
+        _fit([u, u], [z])
+    with pytest.raises(ValueError, match=r"u\[1\] has 100 samples but z\[1\] has 200"):
+        _fit([u, u[:100]], [z, z])
+
+
+def test_predict_checks_the_input_width(data):
+    u, z = data
+    est = _fit(u, z)
+    with pytest.raises(
+        ValueError, match="u has 2 features, but GreyBoxSparseRegressor is expecting"
+    ):
+        est.predict(np.hstack([u, u]))
+
+
+def test_sample_index_of_the_wrong_length(data):
+    u, z = data
+    with pytest.raises(ValueError, match="sample_index must have one entry per sample"):
+        GreyBoxSparseRegressor(tanks_physics(), max_iter=5).fit(u, z, sample_index=np.arange(10))
+
+
+def test_parameter_definitions_are_checked():
+    with pytest.raises(ValueError, match="outside its bounds"):
+        Parameter(2.0, bounds=(0.0, 1.0))
+    with pytest.raises(ValueError, match="must be finite"):
+        Parameter(np.nan)
+    with pytest.raises(ValueError, match="x0 must be 2 finite values"):
+        PhysicsModel(tanks_step, [1], {"k1": Parameter(1.0)}, 2, 1, x0=[1.0, np.nan])
+
+
+def test_fit_leaves_global_jax_configuration_alone(data):
+    before = jax.config.jax_enable_x64
+    _fit(*data)
+    assert jax.config.jax_enable_x64 == before
