@@ -150,6 +150,10 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         Samples used by :meth:`score` to estimate the initial state of the scored record
         (excluded from the score). ``None``: ``min(50, n_samples // 5)``; ``0``: simulate
         from the fitted initial state ``x0_``.
+    warm_start : bool, default=False
+        Start ``fit`` from the previous solution (parameters, :math:`\Omega`, inner
+        weights and, for the same number of records, initial states) instead of the
+        physics' guesses, e.g. to refine a short-``horizon`` fit with ``horizon=None``.
     verbose : int, default=0
         Print solver progress every 10 iterations (every iteration if > 1).
     random_state : int, RandomState instance or None, default=None
@@ -201,6 +205,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         "max_iter": [Interval(Integral, 1, None, closed="left")],
         "tol": [Interval(Real, 0, None, closed="left")],
         "init_window": [Interval(Integral, 0, None, closed="left"), None],
+        "warm_start": ["boolean"],
         "verbose": ["verbose"],
         "random_state": ["random_state"],
     }
@@ -223,6 +228,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         max_iter: int = 200,
         tol: float = 1e-10,
         init_window: int | None = None,
+        warm_start: bool = False,
         verbose: int = 0,
         random_state=None,
     ):
@@ -241,6 +247,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         self.max_iter = max_iter
         self.tol = tol
         self.init_window = init_window
+        self.warm_start = warm_start
         self.verbose = verbose
         self.random_state = random_state
 
@@ -370,10 +377,16 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
             self.solver, self._optimizer(), self.max_iter, self.tol, self.verbose
         )
         blocks, result, segments = fit_records(
-            physics, basis, model, records, self.horizon, weights, options
+            physics, basis, model, records, self.horizon, weights, options, self._warm_blocks()
         )
         self._warn_if_unfinished(result)
         return blocks, result, segments
+
+    def _warm_blocks(self) -> dict | None:
+        """The previous solution as starting blocks (``warm_start``), else ``None``."""
+        if not self.warm_start or not hasattr(self, "theta_"):
+            return None
+        return dict(self._fitted_blocks(), starts=self.initial_states_)
 
     def _optimizer(self):
         if self.optimizer is not None:

@@ -82,11 +82,29 @@ def initial_state_guess(base, output, z_first, fixed=None) -> np.ndarray:
     return guess
 
 
-def initial_blocks(physics, basis, model, records, segments, horizon) -> dict:
+def _apply_warm(blocks: dict, guesses: list, warm: dict, fixed: np.ndarray) -> list:
+    """Replace initial values by those of an earlier fit where the shapes agree.
+
+    Fixed physical parameters keep their declared values; returns the initial states.
+    """
+    declared = blocks["theta"]
+    for name, value in warm.items():
+        if name in blocks and np.shape(value) == np.shape(blocks[name]):
+            blocks[name] = np.array(value, dtype=float)
+    blocks["theta"] = np.where(fixed, declared, blocks["theta"])
+    starts = warm.get("starts")
+    if starts is not None and len(starts) == len(guesses):
+        return [np.asarray(s, float) for s in starts]
+    return guesses
+
+
+def initial_blocks(physics, basis, model, records, segments, horizon, warm=None) -> dict:
     """Initial value of every block: physics guesses, zero Ω, basis inner values.
 
     Each record starts from ``physics.x0`` with its measured states set to the record's
-    first measurement (:func:`initial_state_guess`).
+    first measurement (:func:`initial_state_guess`). ``warm`` (blocks of an earlier fit, its
+    per-record initial states under ``"starts"``) replaces these values where the shapes
+    agree; fixed parameters keep their declared values.
     """
     blocks = {"theta": physics.parameter_values()}
     guesses = [
@@ -95,6 +113,9 @@ def initial_blocks(physics, basis, model, records, segments, horizon) -> dict:
     if model.basis is not None:
         blocks["omega"] = np.zeros(basis.omega_trainable.shape)
         blocks.update({k: np.asarray(v, float) for k, v in basis.init_params.items()})
+    if warm is not None:
+        fixed = np.array([p.fixed for p in physics.parameters.values()], dtype=bool)
+        guesses = _apply_warm(blocks, guesses, warm, fixed)
     blocks["x0"] = np.stack([guesses[r] for r in segments.record])
     if horizon is not None:
         blocks["x0"] = _window_initial_states(model, blocks, records, segments, horizon)
@@ -151,13 +172,15 @@ class SolverOptions(NamedTuple):
     verbose: int
 
 
-def fit_records(physics, basis, model, records, horizon, weights, options: SolverOptions):
+def fit_records(physics, basis, model, records, horizon, weights, options, warm=None):
     """Minimise the cost over all records: the pure core of ``fit``.
 
-    Returns the fitted blocks (numpy), the :class:`SolverResult` and the segments.
+    ``options`` is a :class:`SolverOptions`; ``warm`` optional starting blocks (see
+    :func:`initial_blocks`). Returns the fitted blocks (numpy), the :class:`SolverResult`
+    and the segments.
     """
     segments = make_segments(records, horizon)
-    blocks = initial_blocks(physics, basis, model, records, segments, horizon)
+    blocks = initial_blocks(physics, basis, model, records, segments, horizon, warm)
     free = free_blocks(physics, basis, model, segments)
     layout = Layout.from_arrays(blocks)
     problem, free0 = make_problem(

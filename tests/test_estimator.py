@@ -207,3 +207,14 @@ def test_inputs_and_library_are_not_mutated(tanks_data):
     np.testing.assert_array_equal(u_copy, u[:100])
     np.testing.assert_array_equal(z_copy, z[:100])
     assert not hasattr(library, "powers_") and not hasattr(library, "n_features_in_")
+
+
+def test_warm_start_refines_a_multiple_shooting_fit(tanks_data):
+    u, z, _ = tanks_data
+    est = GreyBoxSparseRegressor(tanks_physics(x0=[5.2, 5.2]), horizon=128, max_iter=300)
+    est.fit(u, z)
+    cold = GreyBoxSparseRegressor(tanks_physics(init=0.07, x0=[5.2, 5.2]), max_iter=300).fit(u, z)
+    est.set_params(horizon=None, warm_start=True).fit(u, z)
+    assert _relative_errors(est).max() < 1e-6
+    assert est.n_iter_ < cold.n_iter_
+    assert est.parameters_["k4"] == TANKS_TRUE["k4"]
