@@ -1,14 +1,21 @@
 """sk_offwhite: physics-based multi-step system identification with sparse corrections."""
 
 from ._basis import RidgeBasis, compile_basis
+from ._effects import Effect, Friction, Leak, OutputSaturation, Overflow, augment
 from ._estimator import GreyBoxSparseRegressor, expected_failed_checks
 from ._physics import Parameter, PhysicsModel
 
 __all__ = [
+    "Effect",
+    "Friction",
     "GreyBoxSparseRegressor",
+    "Leak",
+    "OutputSaturation",
+    "Overflow",
     "Parameter",
     "PhysicsModel",
     "RidgeBasis",
+    "augment",
     "compile_basis",
     "expected_failed_checks",
 ]

@@ -1,0 +1,89 @@
+"""Named effects added to a physics model: structure, semantics and what they buy on data."""
+
+import pickle
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from conftest import tanks_physics
+
+from sk_offwhite import GreyBoxSparseRegressor
+from sk_offwhite._effects import Friction, Leak, OutputSaturation, Overflow, augment
+from sk_offwhite.datasets import cascaded_tanks_physics, make_cascaded_tanks
+
+
+def _theta(physics):
+    return {k: jnp.asarray(p.value) for k, p in physics.parameters.items()}
+
+
+def test_augment_appends_named_parameters_and_leaves_the_model_alone():
+    physics = tanks_physics()
+    before = dict(physics.parameters)
+    augmented = augment(physics, Overflow(0, 9.0, sink=1), OutputSaturation(0, 10.0))
+    assert physics.parameters == before and physics.step is not augmented.step
+    assert list(augmented.parameters)[-3:] == [
+        "overflow_level",
+        "overflow_fraction",
+        "saturation_level",
+    ]
+    assert augmented.parameters["overflow_fraction"].bounds == (0.0, 1.0)
+
+
+def test_parameter_clash_and_wrong_types_are_rejected():
+    with pytest.raises(ValueError, match="'leak_rate' clashes"):
+        augment(tanks_physics(), Leak(0), Leak(1))
+    with pytest.raises(TypeError, match="effects must be Effect instances"):
+        augment(tanks_physics(), "overflow")
+
+
+def test_effects_compare_by_value_and_pickle():
+    effect = Overflow(0, 9.0, sink=1)
+    assert effect == Overflow(0, 9.0, sink=1) and hash(effect) == hash(Overflow(0, 9.0, sink=1))
+    assert effect != Overflow(0, 9.5, sink=1)
+    augmented = augment(tanks_physics(), effect)
+    restored = pickle.loads(pickle.dumps(augmented))
+    assert restored.step == augmented.step
+
+
+def test_sharp_overflow_caps_the_level_and_spills_the_fraction():
+    physics = augment(tanks_physics(), Overflow(0, 5.0, sink=1, fraction=0.25, sharpness=1e4))
+    x, u = jnp.array([4.9, 2.0]), jnp.array([10.0])
+    theta = _theta(physics)
+    plain = tanks_physics().step(x, u, theta)
+    capped = physics.step(x, u, theta)
+    assert float(plain[0]) > 5.0
+    np.testing.assert_allclose(capped[0], 5.0, atol=1e-3)
+    np.testing.assert_allclose(capped[1] - plain[1], 0.25 * (plain[0] - 5.0), rtol=1e-3)
+
+
+def test_output_saturation_leak_and_friction_act_as_described():
+    physics = augment(
+        tanks_physics(),
+        OutputSaturation(0, 3.0, sharpness=1e4),
+        Leak(0, rate=0.1),
+        Friction(1, force=0.2, sharpness=1e3),
+    )
+    x, u = jnp.array([4.0, 5.0]), jnp.array([1.0])
+    theta = _theta(physics)
+    np.testing.assert_allclose(physics.output(x, u, theta), [3.0], atol=1e-3)
+    plain = tanks_physics().step(x, u, theta)
+    np.testing.assert_allclose(physics.step(x, u, theta) - plain, [-0.4, -0.2], atol=1e-6)
+    assert jnp.all(jnp.isfinite(jax.grad(lambda a: physics.step(a, u, theta).sum())(x)))
+
+
+def test_the_missing_overflow_added_as_an_effect_cuts_the_validation_error():
+    data = make_cascaded_tanks(n_samples=1024, noise_std=0.02, random_state=0)
+    physics = cascaded_tanks_physics(
+        fixed={"k4": data.true_parameters["k4"]}, x0=[data.z[0, 0]] * 2
+    )
+
+    def validation_rmse(model):
+        est = GreyBoxSparseRegressor(model, max_iter=300).fit(data.u, data.z)
+        z_sim = est.predict(data.u_val, z_init=data.z_val[:50])
+        return np.sqrt(np.mean((z_sim[50:] - data.z_val[50:]) ** 2)), est
+
+    before, _ = validation_rmse(physics)
+    after, est = validation_rmse(augment(physics, Overflow(0, 9.0, sink=1)))
+    assert after < 0.5 * before
+    assert 0.0 < est.parameters_["overflow_fraction"] < 1.0
