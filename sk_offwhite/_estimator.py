@@ -13,6 +13,7 @@ import optax
 from sklearn.base import BaseEstimator, RegressorMixin, _fit_context, clone
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.metrics import r2_score
+from sklearn.utils import Bunch
 from sklearn.utils._param_validation import Interval, StrOptions
 from sklearn.utils.validation import _check_feature_names, check_is_fitted
 
@@ -26,7 +27,7 @@ from ._problem import (
     fit_records,
     initial_state_guess,
 )
-from ._rollout import simulate
+from ._rollout import correction, simulate
 from ._segments import split_at_gaps
 from ._validation import as_records, check_inputs, check_pair, check_physics, is_experiment_list
 
@@ -441,11 +442,15 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         return blocks
 
     def _simulate_record(self, model, u, x0):
+        """States, outputs and correction terms of a free run from ``x0``."""
         params = {k: jnp.asarray(v) for k, v in self._fitted_blocks().items()}
-        _, outputs, _ = jax.jit(simulate, static_argnums=0)(
+        states, outputs, _ = jax.jit(simulate, static_argnums=0)(
             model, params, jnp.asarray(x0, float), jnp.asarray(u)
         )
-        return np.asarray(outputs)
+        deltas = jax.jit(jax.vmap(correction, in_axes=(None, None, 0, 0)), static_argnums=0)(
+            model, params, states, jnp.asarray(u)
+        )
+        return np.asarray(states), np.asarray(outputs), np.asarray(deltas)
 
     def _initial_state(self, model, u, z_init, x0):
         if x0 is not None:
@@ -477,9 +482,24 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         -------
         z_sim : ndarray of shape (n_samples,) or (n_samples, n_outputs), or list
         """
-        check_is_fitted(self)
         if is_experiment_list(u):
             return [self.predict(ue, x0=x0) for ue in u]
+        outputs = self.simulate(u, x0=x0, z_init=z_init).outputs
+        return outputs.ravel() if self._z_was_1d else outputs
+
+    def simulate(self, u, *, x0=None, z_init=None) -> Bunch:
+        r"""Free-run simulation with everything a residual analysis needs.
+
+        Same arguments as :meth:`predict` (one record).
+
+        Returns
+        -------
+        result : sklearn.utils.Bunch
+            ``outputs`` (n_samples, n_outputs), ``states`` (n_samples, n_states) with
+            :math:`\hat x_k`, ``correction`` (n_samples, n_states) with the black-box term
+            :math:`S\delta(\hat x_k, u_k)` added to each state update, and ``x0``.
+        """
+        check_is_fitted(self)
         _check_feature_names(self, u, reset=False)
         u = check_inputs(u)
         self._check_widths(u.shape[1], reset=False)
@@ -488,8 +508,8 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         with jax.enable_x64(True):
             model = self._fitted_model()
             start = self._initial_state(model, u, z_init, x0)
-            outputs = self._simulate_record(model, u, start)
-        return outputs.ravel() if self._z_was_1d else outputs
+            states, outputs, deltas = self._simulate_record(model, u, start)
+        return Bunch(outputs=outputs, states=states, correction=deltas, x0=np.asarray(start))
 
     def _score_window(self, n_samples: int) -> int:
         if self.init_window is not None:

@@ -218,3 +218,18 @@ def test_warm_start_refines_a_multiple_shooting_fit(tanks_data):
     assert _relative_errors(est).max() < 1e-6
     assert est.n_iter_ < cold.n_iter_
     assert est.parameters_["k4"] == TANKS_TRUE["k4"]
+
+
+def test_simulate_returns_states_and_the_correction_along_the_trajectory(tanks_data):
+    u, z, _ = tanks_data
+    library = ps.PolynomialLibrary(degree=1)
+    est = GreyBoxSparseRegressor(
+        tanks_physics(x0=[5.2, 5.2]), library=library, gamma=1e-4, max_iter=20
+    )
+    with pytest.warns(ConvergenceWarning):
+        est.fit(u[:300], z[:300])
+    run = est.simulate(u[:300])
+    np.testing.assert_allclose(run.outputs, est.predict(u[:300]))
+    np.testing.assert_allclose(run.states[:, 1:2], run.outputs)
+    features = ps.PolynomialLibrary(degree=1).fit_transform(np.hstack([run.states, u[:300]]))
+    np.testing.assert_allclose(run.correction, features @ est.coef_.T, atol=1e-12)
