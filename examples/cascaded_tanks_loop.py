@@ -1,0 +1,63 @@
+"""The closed loop on the measured Cascaded Tanks benchmark: the main job of the README.
+
+Fits the paper's eq. (21) to the estimation record, finds what its simulation residual
+lacks with a sparse correction (γ chosen by cross-validation on the estimation record
+only), adds the effect it points to as explicit physics, refits, and writes a report with
+the errors before and after on both records under both scoring protocols.
+
+Run: ``python examples/cascaded_tanks_loop.py [--out reports/cascaded_tanks] [--quick]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import pysindy as ps
+
+from sk_offwhite.datasets import cascaded_tanks_physics, load_cascaded_tanks
+from sk_offwhite.loop import LoopSettings, close_the_loop, score_models, write_report
+
+
+def tanks_library():
+    """Polynomial terms of degree 2 in (x1, x2, u): smooth, readable candidate terms."""
+    return ps.PolynomialLibrary(degree=2, include_bias=True)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", default="reports/cascaded_tanks")
+    parser.add_argument("--quick", action="store_true", help="smaller grids (for CI)")
+    args = parser.parse_args(argv)
+    data = load_cascaded_tanks()
+    physics = cascaded_tanks_physics(fixed={"k4": 0.05})
+    settings = LoopSettings(
+        gammas=(1e-4, 1e-3) if args.quick else (1e-5, 1e-4, 1e-3, 1e-2),
+        max_iter=100 if args.quick else 300,
+        max_effects=1 if args.quick else 3,
+    )
+    start = time.perf_counter()
+    result = close_the_loop(physics, tanks_library(), data.u_est, data.z_est, settings=settings)
+    records = {"estimation": (data.u_est, data.z_est), "validation": (data.u_val, data.z_val)}
+    rows = score_models(result, records, init_window=50)
+    elapsed = time.perf_counter() - start
+    notes = [
+        "Data: measured Cascaded Tanks benchmark (Schoukens, Mattsson, Wigren, Noël 2016).",
+        "Everything is chosen on the estimation record (γ and effects by 3-fold CV inside it);",
+        "the validation record is only scored. Protocols: `original` simulates the whole",
+        "record from the fitted initial state (the benchmark states that both records start",
+        "from the same state); `init_window` estimates the state from the first 50 samples",
+        "and scores the other 974 (nonlinear_benchmarks).",
+        f"Wall time of the loop and scoring: {elapsed:.0f} s.",
+    ]
+    path = write_report(result, rows, records, args.out, title="Cascaded Tanks", notes=notes)
+    for row in rows:
+        print(
+            f"{row['model']:24s} {row['record']:10s} {row['protocol']:11s} "
+            f"RMSE {row['rmse']:.4f}  fit {row['fit_percent']:.1f} %"
+        )
+    print(f"report: {path}  ({elapsed:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,41 @@
+"""Residual analysis: what a physics model's simulation gets wrong, and where.
+
+Given measured outputs ``z``, a model's simulated outputs ``z_sim``, the inputs ``u`` and
+the simulated states ``x_sim``, with the residual ``z - z_sim``:
+
+- :func:`simulation_metrics`: RMSE, NRMSE, fit %, R² and largest error per output;
+- :func:`whiteness_test`: is the residual white (autocorrelation, Ljung-Box)?
+- :func:`cross_correlation_test`: is it independent of past inputs?
+- :func:`residual_regions`: in which range of a state or input does it concentrate, with
+  which sign?
+- :func:`range_violations`: measured ceilings/floors (saturations?) the model crosses;
+- :func:`analyse_residuals`: all of the above as a :class:`ResidualReport` with
+  ``summary()`` and ``to_dict()``.
+
+Pure NumPy/SciPy; the inputs are never modified.
+"""
+
+from ._correlation import (
+    CrossCorrelationResult,
+    WhitenessResult,
+    cross_correlation_test,
+    whiteness_test,
+)
+from ._metrics import simulation_metrics
+from ._ranges import RangeViolation, range_violations
+from ._regions import ResidualRegion, residual_regions
+from ._report import ResidualReport, analyse_residuals
+
+__all__ = [
+    "CrossCorrelationResult",
+    "RangeViolation",
+    "ResidualRegion",
+    "ResidualReport",
+    "WhitenessResult",
+    "analyse_residuals",
+    "cross_correlation_test",
+    "range_violations",
+    "residual_regions",
+    "simulation_metrics",
+    "whiteness_test",
+]

@@ -1,0 +1,29 @@
+"""The closed loop on measured data: residual, missing effect, augmented physics, before/after.
+
+:func:`close_the_loop` runs the whole loop on an estimation record, :func:`score_models`
+scores its models under both protocols, and :func:`write_report` writes the Markdown report
+with its figures. The pieces (:func:`form_hypotheses`, :func:`propose_effects`) can be used on
+their own.
+"""
+
+from ._candidates import Candidate, propose_effects
+from ._hypotheses import Hypothesis, Term, form_hypotheses, rank_terms
+from ._loop import LoopResult, LoopSettings, analyse_model, close_the_loop, fit_continued
+from ._report import write_report
+from ._scoring import score_models
+
+__all__ = [
+    "Candidate",
+    "Hypothesis",
+    "LoopResult",
+    "LoopSettings",
+    "Term",
+    "analyse_model",
+    "close_the_loop",
+    "fit_continued",
+    "form_hypotheses",
+    "propose_effects",
+    "rank_terms",
+    "score_models",
+    "write_report",
+]

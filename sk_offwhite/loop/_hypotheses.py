@@ -1,0 +1,143 @@
+r"""From a fitted sparse correction to named hypotheses about the missing physics.
+
+For a fitted model with correction :math:`\delta_i = \sum_j \Omega_{ij}\varphi_j` on state
+equation :math:`i`, each selected term is ranked by its contribution along the simulated
+trajectory, :math:`c_{ij} = \mathrm{RMS}_k(\Omega_{ij}\varphi_j(\hat x_k, u_k))`, and its
+share :math:`c_{ij}^2 / \sum_{j'} c_{ij'}^2`. The variables of the dominant terms, the sign of
+:math:`\delta_i` and the range of a variable where :math:`|\delta_i|` concentrates (found with
+:func:`~sk_offwhite.diagnose.residual_regions` applied to :math:`\delta_i`) make up one
+hypothesis per corrected equation.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..diagnose import residual_regions
+
+__all__ = ["Hypothesis", "Term", "form_hypotheses", "rank_terms"]
+
+
+@dataclass(frozen=True)
+class Term:
+    """One selected dictionary term of one corrected equation."""
+
+    equation: str
+    feature: str
+    coefficient: float
+    contribution: float
+    share: float
+    variables: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """What the correction of one state equation says is missing."""
+
+    equation: str
+    equation_index: int
+    variables: tuple[str, ...]
+    sign: int
+    region: tuple[str, float, float] | None
+    terms: tuple[Term, ...] = field(default=())
+    sentence: str = ""
+
+
+def feature_variables(feature: str, names: tuple[str, ...]) -> tuple[str, ...]:
+    """Names of the variables a feature name mentions (whole-word matches), in order."""
+    return tuple(n for n in names if re.search(rf"(?<![\w]){re.escape(n)}(?![\w])", feature))
+
+
+def _features(est, run, u) -> np.ndarray:
+    """Per-term contributions ``Ω_ij φ_j`` along the trajectory, shape (n, n_delta, m)."""
+    from .._basis import evaluate_matrix
+
+    basis, _ = est._compile(est.physics_)
+    v = np.hstack([run.states, np.asarray(u, float)])
+    phi = np.asarray(evaluate_matrix(basis, est.inner_params_, v))
+    return phi * est.coef_[None]
+
+
+def rank_terms(est, run, u) -> list[list[Term]]:
+    """Selected terms of each corrected equation, largest contribution first."""
+    contributions = _features(est, run, u)
+    names = tuple(est.physics_.state_names) + tuple(est.physics_.input_names)
+    ranked = []
+    for row, state in enumerate(est.delta_states_):
+        rms = np.sqrt(np.mean(contributions[:, row, :] ** 2, axis=0))
+        total = max(float(np.sum(rms**2)), 1e-300)
+        terms = [
+            Term(
+                est.physics_.state_names[state],
+                est.feature_names_[j],
+                float(est.coef_[row, j]),
+                float(rms[j]),
+                float(rms[j] ** 2 / total),
+                feature_variables(est.feature_names_[j], names),
+            )
+            for j in np.flatnonzero(est.support_[row])
+        ]
+        ranked.append(sorted(terms, key=lambda t: -t.contribution))
+    return ranked
+
+
+def _dominant_variables(terms: list[Term], share: float = 0.9) -> tuple[str, ...]:
+    """Variables of the fewest terms that hold ``share`` of the contribution."""
+    variables, held = [], 0.0
+    for term in terms:
+        variables.extend(v for v in term.variables if v not in variables)
+        held += term.share
+        if held >= share:
+            break
+    return tuple(variables)
+
+
+def _sentence(equation, variables, sign, region) -> str:
+    effect = "removes" if sign < 0 else "adds"
+    text = f"The {equation} equation lacks a term in {', '.join(variables) or 'a constant'}"
+    text += f" that {effect} {equation}"
+    if region is not None:
+        name, low, high = region
+        if np.isfinite(low) and not np.isfinite(high):
+            text += f", acting mainly when {name} is above {low:.3g}"
+        elif np.isfinite(high) and not np.isfinite(low):
+            text += f", acting mainly when {name} is below {high:.3g}"
+        else:
+            text += f", acting mainly when {name} is in [{low:.3g}, {high:.3g}]"
+    return text + "."
+
+
+def _sign(delta: np.ndarray, signals: dict, region) -> int:
+    """Sign of the correction where it acts (in its region, else weighted by its size)."""
+    if region is not None:
+        name, low, high = region
+        inside = (signals[name] >= low) & (signals[name] <= high)
+        if inside.any():
+            return int(np.sign(np.mean(delta[inside])) or 1)
+    return int(np.sign(np.sum(delta * np.abs(delta))) or 1)
+
+
+def form_hypotheses(est, run, u) -> list[Hypothesis]:
+    """One hypothesis per equation whose correction is not zero, strongest first."""
+    ranked = rank_terms(est, run, u)
+    names = tuple(est.physics_.state_names) + tuple(est.physics_.input_names)
+    signals = dict(zip(names, np.hstack([run.states, np.asarray(u, float)]).T, strict=True))
+    hypotheses = []
+    for row, state in enumerate(est.delta_states_):
+        if not ranked[row]:
+            continue
+        delta = run.correction[:, state]
+        variables = _dominant_variables(ranked[row])
+        regions = residual_regions(delta, {v: signals[v] for v in variables or names}, n_shifts=0)
+        best = regions[0] if regions and regions[0].rms_ratio >= 1.25 else None
+        region = None if best is None else (best.variable, best.low, best.high)
+        sign = _sign(delta, signals, region)
+        equation = est.physics_.state_names[state]
+        sentence = _sentence(equation, variables, sign, region)
+        hypotheses.append(
+            Hypothesis(equation, state, variables, sign, region, tuple(ranked[row]), sentence)
+        )
+    return sorted(hypotheses, key=lambda h: -sum(t.contribution**2 for t in h.terms))

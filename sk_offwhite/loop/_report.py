@@ -1,0 +1,145 @@
+"""Markdown report with PNG figures of a closed-loop run."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from ._loop import analyse_model  # noqa: E402
+from ._scoring import MODEL_LABELS  # noqa: E402
+
+__all__ = ["write_report"]
+
+
+def _table(rows: list[dict]) -> list[str]:
+    lines = ["| model | record | protocol | RMSE | fit % |", "|---|---|---|---|---|"]
+    lines += [
+        f"| {r['model']} | {r['record']} | {r['protocol']} | {r['rmse']:.4f} | "
+        f"{r['fit_percent']:.1f} |"
+        for r in rows
+    ]
+    return lines
+
+
+def _figure_outputs(result, u, z, path: Path, title: str) -> None:
+    fig, axes = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)
+    z = np.asarray(z, float).reshape(len(u), -1)[:, 0]
+    axes[0].plot(z, "k", lw=1.2, label="measured")
+    for key in ("baseline", "final"):
+        z_sim = getattr(result, key).simulate(u).outputs[:, 0]
+        axes[0].plot(z_sim, lw=1, label=MODEL_LABELS[key])
+        axes[1].plot(z - z_sim, lw=1, label=MODEL_LABELS[key])
+    axes[0].set_title(title)
+    axes[0].legend(loc="best", fontsize=8)
+    axes[1].set_ylabel("residual")
+    axes[1].set_xlabel("sample")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def _figure_correction(result, u, path: Path) -> bool:
+    est = result.with_delta
+    run = est.simulate(u)
+    if not result.hypotheses:
+        return False
+    fig, axes = plt.subplots(1, len(result.hypotheses), figsize=(4.5 * len(result.hypotheses), 3.6))
+    names = list(est.physics_.state_names) + list(est.physics_.input_names)
+    signals = np.hstack([run.states, np.asarray(u, float)])
+    for ax, hyp in zip(np.atleast_1d(axes), result.hypotheses, strict=True):
+        variable = hyp.region[0] if hyp.region else (hyp.variables or names[:1])[0]
+        ax.plot(signals[:, names.index(variable)], run.correction[:, hyp.equation_index], ".", ms=2)
+        ax.set_xlabel(f"{variable} (simulated)")
+        ax.set_ylabel(f"δ in the {hyp.equation} equation")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
+def _parameters(est) -> list[str]:
+    return [f"| {k} | {v:.6g} |" for k, v in est.parameters_.items()]
+
+
+def _hypothesis_lines(result) -> list[str]:
+    lines = []
+    for hyp in result.hypotheses:
+        lines += [
+            f"- **{hyp.sentence}**",
+            "",
+            "  | term | Ω | RMS contribution | share |",
+            "  |---|---|---|---|",
+        ]
+        lines += [
+            f"  | {t.feature} | {t.coefficient:.4g} | {t.contribution:.4g} | {t.share:.1%} |"
+            for t in hyp.terms[:8]
+        ]
+        lines.append("")
+    return lines or ["- The correction is empty: δ found nothing the physics misses."]
+
+
+def _selection_lines(result) -> list[str]:
+    lines = ["| model | cross-validated R² (estimation record) |", "|---|---|"]
+    lines += [f"| {name} | {score:.4f} |" for name, score in result.selection]
+    chosen = [
+        f"- `{e.name}`: {e.describe(result.physics.state_names, _names(result))}"
+        for e in result.effects
+    ]
+    return lines + ["", "Effects added:", ""] + (chosen or ["- none improved the CV score"])
+
+
+def _names(result) -> list[str]:
+    return list(result.physics.output_names or ["z1"])
+
+
+def _residual_section(result, records, label_key) -> list[str]:
+    est = getattr(result, label_key)
+    u, z = records["estimation"]
+    report = analyse_model(
+        est, u, z, result.augmented_physics if "final" in label_key else result.physics
+    )
+    return [f"### {MODEL_LABELS[label_key]}, estimation record", "", report.summary(), ""]
+
+
+def write_report(result, rows, records: dict, directory, *, title: str, notes=()) -> Path:
+    """Write ``report.md``, figures and ``results.json`` into ``directory``; return the path."""
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    for name, (u, z) in records.items():
+        _figure_outputs(result, u, z, out / f"outputs_{name}.png", f"{title}: {name} record")
+    has_delta_fig = _figure_correction(result, records["estimation"][0], out / "correction.png")
+    lines = [f"# {title}: closed-loop report", "", *notes, "", "## Simulation errors", ""]
+    lines += _table(rows) + ["", "## Residual before and after", ""]
+    lines += _residual_section(result, records, "baseline")
+    lines += _residual_section(result, records, "final")
+    lines += ["## What the sparse correction says", ""]
+    lines += [
+        f"γ by {len(result.gamma_scores)}-value grid search, CV R² on the estimation "
+        f"record: " + ", ".join(f"{g:g} → {s:.4f}" for g, s in result.gamma_scores.items()),
+        f"(chosen γ = {result.with_delta.gamma:g}).",
+        "",
+    ]
+    lines += _hypothesis_lines(result)
+    lines += ["![correction](correction.png)", ""] if has_delta_fig else []
+    lines += ["## Effects tried and added", ""] + _selection_lines(result) + [""]
+    lines += ["## Parameters", "", "| augmented physics | value |", "|---|---|"]
+    lines += _parameters(result.final) + [""]
+    lines += ["## Remaining correction on the augmented physics", ""]
+    lines += [
+        f"Non-zero δ terms: {int(result.final_with_delta.support_.sum())} (before: "
+        f"{int(result.with_delta.support_.sum())}); Σ|Ω| "
+        f"{np.abs(result.final_with_delta.coef_).sum():.4g} (before: "
+        f"{np.abs(result.with_delta.coef_).sum():.4g}).",
+        "",
+    ]
+    lines += result.final_with_delta.equations() + [""]
+    lines += [f"![outputs {n}](outputs_{n}.png)" for n in records] + [""]
+    (out / "report.md").write_text("\n".join(lines), encoding="utf-8")
+    (out / "results.json").write_text(json.dumps({"rows": rows}, indent=2), encoding="utf-8")
+    return out / "report.md"
