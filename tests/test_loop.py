@@ -1,0 +1,81 @@
+"""The closed loop: from a poor physics-only fit to a named, added effect, before/after."""
+
+import numpy as np
+import pytest
+
+from sk_offwhite import Leak, OutputSaturation, Overflow
+from sk_offwhite.datasets import make_leaky_tank
+from sk_offwhite.diagnose import range_violations
+from sk_offwhite.loop import (
+    Hypothesis,
+    LoopSettings,
+    close_the_loop,
+    propose_effects,
+    score_models,
+    write_report,
+)
+from sk_offwhite.loop._hypotheses import feature_variables
+
+
+@pytest.fixture(scope="module")
+def leaky():
+    data = make_leaky_tank(n_samples=600, random_state=0)
+    settings = LoopSettings(gammas=(1e-3,), max_iter=150, max_effects=1)
+    result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=settings)
+    return data, result
+
+
+def _validation_rmse(result, data, model):
+    rows = score_models(result, {"validation": (data.u_val, data.z_val)})
+    return next(r["rmse"] for r in rows if r["model"] == model and r["protocol"] == "init_window")
+
+
+def test_loop_names_the_hidden_leak(leaky):
+    data, result = leaky
+    top = result.hypotheses[0]
+    assert top.equation == "x" and top.sign == data.hidden_effect["sign"] == -1
+    assert top.variables == ("x",)
+    assert result.effects == (Leak(0, name="leak_x"),)
+
+
+def test_adding_the_effect_cuts_validation_and_parameter_errors(leaky):
+    data, result = leaky
+    before = _validation_rmse(result, data, "declared physics")
+    after = _validation_rmse(result, data, "augmented physics")
+    assert after < 0.2 * before
+    truth = data.true_parameters
+    error_before = abs(result.baseline.parameters_["k"] - truth["k"])
+    error_after = abs(result.final.parameters_["k"] - truth["k"])
+    assert error_after < 0.1 * error_before
+    np.testing.assert_allclose(result.final.parameters_["leak_x_rate"], 0.05, rtol=0.05)
+
+
+def test_report_is_written_with_figures(leaky, tmp_path):
+    data, result = leaky
+    records = {"estimation": (data.u, data.z), "validation": (data.u_val, data.z_val)}
+    rows = score_models(result, records)
+    path = write_report(result, rows, records, tmp_path, title="Leaky tank")
+    text = path.read_text()
+    assert "leak_x" in text and "| declared physics | validation | init_window |" in text
+    assert (tmp_path / "outputs_validation.png").stat().st_size > 1000
+    assert (tmp_path / "correction.png").exists() and (tmp_path / "results.json").exists()
+
+
+def test_feature_names_map_to_variables():
+    names = ("x1", "x2", "u")
+    assert feature_variables("x1 u", names) == ("x1", "u")
+    assert feature_variables("x1^2", names) == ("x1",)
+    assert feature_variables("1", names) == ()
+    assert feature_variables("x12", names) == ()
+
+
+def test_proposals_follow_the_sign_region_and_measured_ceiling():
+    states = np.linspace(0.0, 10.0, 200)[:, None] * np.ones((1, 2))
+    loss = Hypothesis("x1", 0, ("x1",), -1, ("x1", 8.0, np.inf), (), "x1 loses.")
+    z = np.minimum(states[:, 1:], 9.0)
+    facts = range_violations(z, states[:, 1:], ["x2"])
+    proposals = [c.effect for c in propose_effects([loss], facts, ("x1", "x2"), ["x2"], states)]
+    assert Overflow(0, 8.0, name="overflow_x1") in proposals
+    assert Overflow(0, 8.0, sink=1, name="overflow_x1_to_x2") in proposals
+    assert Leak(0, name="leak_x1") in proposals
+    assert OutputSaturation(0, 9.0, name="saturation_x2") in proposals
