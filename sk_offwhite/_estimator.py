@@ -521,7 +521,9 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
 
         The first ``init_window`` samples of every contiguous record (see ``sample_index``)
         are used to estimate its initial state, as MATLAB's ``compare`` does, and are
-        excluded from the score. With ``init_window=0`` records start from ``x0_``.
+        excluded from the score. With ``init_window=0`` records start from ``x0_``. A
+        simulation that diverges scores ``-inf`` (with a ``RuntimeWarning``), so model
+        selection never picks it.
         """
         check_is_fitted(self)
         records = self._records(u, z, sample_index, reset=False)
@@ -531,7 +533,15 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
             z_sim = self.predict(u_r, z_init=z_r[:window] if window else None)
             measured.append(z_r[window:])
             simulated.append(np.asarray(z_sim).reshape(len(u_r), -1)[window:])
-        return r2_score(np.concatenate(measured), np.concatenate(simulated))
+        simulated = np.concatenate(simulated)
+        if not np.all(np.isfinite(simulated)):
+            warnings.warn(
+                "The simulation diverged (non-finite outputs) on the scored data; score is -inf.",
+                RuntimeWarning,
+                stacklevel=2,
+            )
+            return -np.inf
+        return r2_score(np.concatenate(measured), simulated)
 
     # ------------------------------------------------------------------ read-out
     def equations(self, precision: int = 4) -> list[str]:

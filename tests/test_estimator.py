@@ -233,3 +233,15 @@ def test_simulate_returns_states_and_the_correction_along_the_trajectory(tanks_d
     np.testing.assert_allclose(run.states[:, 1:2], run.outputs)
     features = ps.PolynomialLibrary(degree=1).fit_transform(np.hstack([run.states, u[:300]]))
     np.testing.assert_allclose(run.correction, features @ est.coef_.T, atol=1e-12)
+
+
+def test_a_diverging_simulation_scores_minus_infinity():
+    physics = PhysicsModel(
+        lambda x, u, theta: theta["a"] * x + u, [0], {"a": Parameter(10.0, fixed=True)}, 1, 1
+    )
+    u = np.zeros((400, 1))
+    z = 10.0 ** np.arange(5.0)[:, None]
+    est = GreyBoxSparseRegressor(physics, init_window=0).fit(u[:5], z)
+    np.testing.assert_allclose(est.x0_, [1.0])
+    with pytest.warns(RuntimeWarning, match="diverged"):
+        assert est.score(u, np.ones((400, 1))) == -np.inf
