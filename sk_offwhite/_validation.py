@@ -41,6 +41,11 @@ def check_inputs(u) -> np.ndarray:
 
 def check_pair(u, z) -> tuple[np.ndarray, np.ndarray]:
     """Validated ``u`` and ``z`` (1-D or 2-D) with one row each per sample."""
+    if z is None:
+        raise ValueError(
+            "z is None: this estimator requires y to be passed, but the target y is None "
+            "(z holds the measured outputs)."
+        )
     u = check_inputs(u)
     z = check_array(z, dtype=np.float64, ensure_2d=False, ensure_all_finite=True, input_name="z")
     if z.ndim > 2:

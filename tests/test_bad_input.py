@@ -166,3 +166,8 @@ def test_fit_leaves_global_jax_configuration_alone(data):
     before = jax.config.jax_enable_x64
     _fit(*data)
     assert jax.config.jax_enable_x64 == before
+
+
+def test_missing_outputs_are_named(data):
+    with pytest.raises(ValueError, match="z is None"):
+        _fit(data[0], None)
