@@ -27,7 +27,7 @@ from ._problem import (
     fit_records,
     initial_state_guess,
 )
-from ._rollout import correction, simulate
+from ._rollout import free_run
 from ._segments import split_at_gaps
 from ._validation import as_records, check_inputs, check_pair, check_physics, is_experiment_list
 
@@ -444,12 +444,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     def _simulate_record(self, model, u, x0):
         """States, outputs and correction terms of a free run from ``x0``."""
         params = {k: jnp.asarray(v) for k, v in self._fitted_blocks().items()}
-        states, outputs, _ = jax.jit(simulate, static_argnums=0)(
-            model, params, jnp.asarray(x0, float), jnp.asarray(u)
-        )
-        deltas = jax.jit(jax.vmap(correction, in_axes=(None, None, 0, 0)), static_argnums=0)(
-            model, params, states, jnp.asarray(u)
-        )
+        states, outputs, deltas = free_run(model, params, jnp.asarray(x0, float), jnp.asarray(u))
         return np.asarray(states), np.asarray(outputs), np.asarray(deltas)
 
     def _initial_state(self, model, u, z_init, x0):

@@ -17,7 +17,7 @@ from ._layout import Layout
 from ._objective import CostWeights
 from ._optim import Problem, SolverResult, levenberg_marquardt, run_optax
 from ._physics import PhysicsModel
-from ._rollout import Model, simulate
+from ._rollout import Model, jit_simulate
 from ._segments import Segments, make_segments
 
 __all__ = [
@@ -62,7 +62,7 @@ def _window_initial_states(model, blocks, records, segments, horizon):
         if n_windows == 1:
             x0.append(start)
             continue
-        states, _, _ = jax.jit(simulate, static_argnums=0)(model, params, jnp.asarray(start), u)
+        states, _, _ = jit_simulate(model, params, jnp.asarray(start), u)
         states = np.asarray(states)[::horizon][:n_windows]
         x0.extend(np.where(np.isfinite(states), states, start))
     return np.asarray(x0)

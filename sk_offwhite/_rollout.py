@@ -18,11 +18,20 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import partial
 
 import jax
 import jax.numpy as jnp
 
-__all__ = ["Model", "correction", "model_step", "simulate", "theta_dict"]
+__all__ = [
+    "Model",
+    "correction",
+    "free_run",
+    "jit_simulate",
+    "model_step",
+    "simulate",
+    "theta_dict",
+]
 
 
 @dataclass(frozen=True)
@@ -96,3 +105,18 @@ def simulate(model: Model, params: dict, x0, u):
 
     final_state, (states, outputs) = jax.lax.scan(advance, x0, u)
     return states, outputs, final_state
+
+
+jit_simulate = jax.jit(simulate, static_argnums=0)
+""":func:`simulate` compiled once per model structure and array shapes."""
+
+
+@partial(jax.jit, static_argnums=0)
+def free_run(model: Model, params: dict, x0, u):
+    r"""Jitted :func:`simulate` plus the correction :math:`S\delta(\hat x_k, u_k)` at every step.
+
+    Returns ``(states, outputs, corrections)``, the last of shape ``(L, n_x)``.
+    """
+    states, outputs, _ = simulate(model, params, x0, u)
+    corrections = jax.vmap(lambda x, u_k: correction(model, params, x, u_k))(states, u)
+    return states, outputs, corrections

@@ -197,6 +197,12 @@ class _TermName:
     def __call__(self, *names) -> str:
         return self.template.format(*names)
 
+    def __eq__(self, other) -> bool:
+        return isinstance(other, _TermName) and other.template == self.template
+
+    def __hash__(self) -> int:
+        return hash((_TermName, self.template))
+
 
 def _simple_record(rng, n, physics, theta, x0, u, effect, stds, noisy_states):
     """Simulate one record with Gaussian process noise on ``noisy_states`` and output noise."""
