@@ -1,0 +1,424 @@
+r"""Sparsity certificates: Theorems 2-3 (single-step, linear) and 4-5 (multi-step, local).
+
+Given a linear-in-parameters problem :math:`y = \Phi_\theta\theta + \Phi\omega + \eta`,
+:math:`\|\eta\|_2 \le \mu` (:mod:`._relaxation`), and a sparse estimate :math:`\hat\omega`
+with support :math:`S`, :math:`M = |S|` and :math:`\eta(\hat\omega) = \min_{i \in S}
+|\hat\omega_i|`:
+
+1. :math:`\omega^v` solves (11): :math:`\min \|\omega\|_1` s.t.
+   :math:`\mathrm{sign}(\hat\omega_i)\omega_i \ge \eta(\hat\omega)` on :math:`S`,
+   :math:`|\omega_i| \le \eta(\hat\omega)` off :math:`S` (the paper's strict ``<`` is
+   relaxed to its closure, as a convex solver requires), and
+   :math:`\|\Upsilon_0(y - \Phi\omega)\|_2 \le \mu`, with
+   :math:`\Upsilon_0 = I - \Phi_\theta\Phi_\theta^\dagger`.
+2. With :math:`e = e^*(y, \omega^v) = \Upsilon_0 (y - \Phi\omega^v)` (Lemma 2) and the
+   *projected dictionary* :math:`Q = \Upsilon_0\Phi` (columns :math:`q_j`), the threshold
+
+   .. math::
+
+      \tau = \frac{\|e\|_{(Q,1)} + \|e\|_{(Q,2M)}}{\sigma^2_{2M}(Q)}, \qquad
+      \|e\|_{(Q,n)} = \Big(\sum_{j \in \mathcal{I}_n(e)} (e^\top q_j)^2\Big)^{1/2}, \qquad
+      \sigma^2_n(Q) = \min_{\|x\|_0 \le n} \frac{\|Qx\|_2^2}{\|x\|_2^2}.
+
+3. :math:`\lambda = \{i : |\omega^v_i| > \tau\}`, the bound (12)
+   :math:`\bar\kappa_e = M - |\lambda|`, and the verdict (13): if :math:`\tau <
+   \eta(\hat\omega)`, :math:`\hat\omega` is maximally sparse and has the support of the
+   sparsest feasible :math:`\bar\omega` (margin :math:`\eta(\hat\omega) - \tau`).
+
+**Interpretation.** The paper writes :math:`\sigma^2_{2M}(\Upsilon_0)` and
+:math:`\|\cdot\|_{(\Upsilon_0, n)}`; the matrix whose columns enter is the projected
+dictionary :math:`\Upsilon_0\Phi` (the proof applies Gribonval et al. to
+:math:`\Upsilon_0 y = \Upsilon_0\Phi\omega + e^*`), which also makes :math:`\tau` carry
+the units of :math:`\omega`. In the multi-step case (Theorem 5) the same computation runs on
+the local linearisation: :math:`\Phi_\theta = J_\theta`, :math:`\Phi = J_\omega`,
+:math:`Q = \Upsilon_\ell J_\omega`.
+
+**Columns confounded with the physics.** A dictionary column in the span of
+:math:`\Phi_\theta` (:math:`\Upsilon_0\varphi_j = 0`, e.g. a dictionary term equal to a
+physical regressor) makes :math:`\sigma^2_{2M} = 0` for every :math:`M`, so the literal
+test could never pass. Such an :math:`\omega_j` never appears in a maximally sparse solution
+(zeroing it and absorbing it into :math:`\theta` keeps the residual), so (9) is unchanged
+when these columns are removed; :math:`\sigma^2_{2M}` and :math:`\|\cdot\|_{(Q,n)}` are
+computed on the remaining columns, and an estimate whose support uses a confounded column
+is reported as not certifiable.
+
+**Exact or bound.** :math:`\sigma^2_{2M}` is the smallest eigenvalue of
+:math:`Q_S^\top Q_S` over all supports of size :math:`k = \min(2M, m')` (``m'`` columns
+left; larger supports only lower it). It is exact by enumeration when
+:math:`\binom{m'}{k} \le` ``max_subsets`` (default 20 000: every support size for
+:math:`m' \le 16`); otherwise the largest of two valid lower bounds is used,
+:math:`\lambda_{\min}(Q^\top Q)` and the Gershgorin bound
+:math:`\min_i (G_{ii} - \text{sum of the } k-1 \text{ largest } |G_{ij}|)`, which keeps the
+certificate valid but conservative; the result says which.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import cvxpy as cp
+import numpy as np
+
+from ._relaxation import (
+    LinearProblem,
+    linear_problem,
+    residual_constraint,
+    scaled_dictionary,
+    solve_status,
+)
+
+__all__ = [
+    "SparsityCertificate",
+    "certify_sparsity",
+    "certify_problem",
+    "restricted_eigenvalue",
+    "top_inner_norm",
+]
+
+MAX_SUBSETS = 20_000
+_CHUNK = 4096
+
+
+def project_out(phi_theta: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    r""":math:`\Upsilon(\Phi_\theta) A = (I - \Phi_\theta\Phi_\theta^\dagger) A` (rank by SVD)."""
+    if phi_theta.shape[1] == 0:
+        return matrix.copy()
+    u, s, _ = np.linalg.svd(phi_theta, full_matrices=False)
+    rank = int(np.sum(s > s[0] * max(phi_theta.shape) * np.finfo(float).eps)) if s.size else 0
+    basis = u[:, :rank]
+    return matrix - basis @ (basis.T @ matrix)
+
+
+def confounded_columns(phi: np.ndarray, projected: np.ndarray, rtol: float = 1e-8) -> np.ndarray:
+    r"""Columns in the span of :math:`\Phi_\theta`: :math:`\|\Upsilon_0\varphi_j\| \le` ``rtol``
+    :math:`\|\varphi_j\|`."""
+    return np.linalg.norm(projected, axis=0) <= rtol * np.linalg.norm(phi, axis=0)
+
+
+def top_inner_norm(e: np.ndarray, q: np.ndarray, n: int) -> float:
+    r""":math:`\|e\|_{(Q,n)}`: root sum of squares of the ``n`` largest :math:`|e^\top q_j|`."""
+    inner = np.sort(np.abs(q.T @ e))[::-1]
+    return float(np.sqrt(np.sum(inner[:n] ** 2)))
+
+
+def _subset_minimum(gram: np.ndarray, k: int) -> float:
+    """Exact minimum of the smallest eigenvalue of every ``k x k`` principal submatrix."""
+    best = np.inf
+    subsets = itertools.combinations(range(gram.shape[0]), k)
+    while chunk := list(itertools.islice(subsets, _CHUNK)):
+        index = np.asarray(chunk)
+        blocks = gram[index[:, :, None], index[:, None, :]]
+        best = min(best, float(np.min(np.linalg.eigvalsh(blocks)[:, 0])))
+    return best
+
+
+def _gershgorin_bound(gram: np.ndarray, k: int) -> float:
+    """Lower bound on the smallest eigenvalue of any ``k x k`` principal submatrix."""
+    off = np.abs(gram - np.diag(np.diag(gram)))
+    largest = -np.sort(-off, axis=1)[:, : k - 1]
+    return float(np.min(np.diag(gram) - np.sum(largest, axis=1)))
+
+
+def restricted_eigenvalue(
+    q: np.ndarray, n: int, *, max_subsets: int = MAX_SUBSETS
+) -> tuple[float, bool]:
+    r""":math:`\sigma^2_n(Q) = \min_{\|x\|_0 \le n} \|Qx\|_2^2 / \|x\|_2^2`, exact or a lower bound.
+
+    Parameters
+    ----------
+    q : ndarray of shape (T, m)
+    n : int
+        Sparsity level (capped at ``m``).
+    max_subsets : int, default=20000
+        Enumerate all :math:`\binom{m}{\min(n, m)}` supports when there are at most this many.
+
+    Returns
+    -------
+    value : float
+        The exact value, or the valid lower bound
+        :math:`\max(\lambda_{\min}(Q^\top Q), \text{Gershgorin})` clipped at 0.
+    exact : bool
+        ``True`` when ``value`` is exact.
+    """
+    gram = q.T @ q
+    k = min(int(n), gram.shape[0])
+    if k == 0:
+        return np.inf, True
+    if math.comb(gram.shape[0], k) <= max_subsets:
+        return max(_subset_minimum(gram, k), 0.0), True
+    bound = max(float(np.linalg.eigvalsh(gram)[0]), _gershgorin_bound(gram, k))
+    return max(bound, 0.0), False
+
+
+def _vertex_problem(problem: LinearProblem, omega_hat: np.ndarray, eta: float):
+    """The convex program (11) and its variable ``omega`` (a cvxpy expression)."""
+    scales = scaled_dictionary(problem)
+    theta = cp.Variable(problem.n_theta) if problem.n_theta else None
+    w = cp.Variable(problem.n_features)
+    omega = cp.multiply(scales, w)
+    on = np.flatnonzero(omega_hat)
+    off = np.flatnonzero(omega_hat == 0)
+    constraints = [residual_constraint(problem, theta, w, scales)]
+    constraints.append(cp.multiply(np.sign(omega_hat[on]), omega[on]) >= eta)
+    if off.size:
+        constraints.append(cp.abs(omega[off]) <= eta)
+    return cp.Problem(cp.Minimize(cp.norm(omega, 1)), constraints), omega
+
+
+def sparsity_vertex(problem: LinearProblem, omega_hat: np.ndarray) -> tuple[str, np.ndarray | None]:
+    r"""Solve (11) for :math:`\omega^v`; returns ``(status, omega_v)`` (``None`` unless optimal)."""
+    eta = float(np.min(np.abs(omega_hat[omega_hat != 0])))
+    prob, omega = _vertex_problem(problem, omega_hat, eta)
+    status = solve_status(prob)
+    if status != cp.OPTIMAL:
+        return status, None
+    return status, np.asarray(omega.value, float)
+
+
+@dataclass(frozen=True)
+class _Geometry:
+    """Projected dictionary quantities shared by Theorems 2 and 3."""
+
+    projected: np.ndarray
+    kept: np.ndarray
+    sigma2: float
+    sigma2_exact: bool
+    n_sparse: int
+
+
+def _geometry(problem: LinearProblem, m_support: int, max_subsets: int) -> _Geometry:
+    projected = project_out(problem.phi_theta, problem.phi)
+    kept = ~confounded_columns(problem.phi, projected)
+    n_sparse = min(2 * m_support, int(kept.sum()))
+    sigma2, exact = restricted_eigenvalue(projected[:, kept], n_sparse, max_subsets=max_subsets)
+    return _Geometry(projected, kept, sigma2, exact, n_sparse)
+
+
+def support_threshold(problem: LinearProblem, geometry: _Geometry, omega: np.ndarray) -> float:
+    r""":math:`\tau = (\|e^*\|_{(Q,1)} + \|e^*\|_{(Q,2M)}) / \sigma^2_{2M}(Q)`.
+
+    With :math:`e^* = \Upsilon_0(y - \Phi\omega)`; ``inf`` when :math:`\sigma^2_{2M} = 0`.
+    """
+    if geometry.sigma2 <= 0:
+        return np.inf
+    e = project_out(problem.phi_theta, (problem.y - problem.phi @ omega)[:, None])[:, 0]
+    q = geometry.projected[:, geometry.kept]
+    top = top_inner_norm(e, q, 1) + top_inner_norm(e, q, geometry.n_sparse)
+    return top / geometry.sigma2
+
+
+def _residual_norm(problem: LinearProblem, omega: np.ndarray) -> float:
+    r"""Optimal compensation error norm.
+
+    :math:`\|\Upsilon_0(y - \Phi\omega)\|_2 = \min_\theta \|y - \Phi_\theta\theta - \Phi\omega\|_2`.
+    """
+    residual = (problem.y - problem.phi @ omega)[:, None]
+    return float(np.linalg.norm(project_out(problem.phi_theta, residual)))
+
+
+@dataclass(frozen=True)
+class SparsityCertificate:
+    r"""Outcome of the maximal-sparsity test of Theorem 3 (or its local form, Theorem 5).
+
+    Attributes
+    ----------
+    certified : bool or None
+        ``True``: :math:`\hat\omega` is (locally) maximally sparse; ``False``: cannot
+        certify; ``None``: the convex program (11) was not solved to optimality (see
+        ``status``), so no verdict is given.
+    reason : str
+        Why the verdict is what it is.
+    status : str
+        cvxpy status of (11).
+    eta : float
+        :math:`\eta(\hat\omega)`, the smallest nonzero :math:`|\hat\omega_i|`.
+    threshold : float
+        :math:`\tau` of (13) (``inf`` when :math:`\sigma^2_{2M} = 0`; ``nan`` without
+        :math:`\omega^v`).
+    margin : float
+        :math:`\eta(\hat\omega) - \tau` (positive when certified).
+    theorem2_bound : float
+        Theorem 2's :math:`\|\omega' - \hat\omega\|_\infty` bound, computed at :math:`\hat\omega`.
+    kappa_bar : int or None
+        :math:`\bar\kappa_e = M - |\lambda|` of (12).
+    sigma2 : float
+        :math:`\sigma^2_{2M}` of the projected dictionary (confounded columns removed).
+    sigma2_exact : bool
+        ``True``: exact by enumeration; ``False``: a valid lower bound.
+    constraint_active : bool or None
+        Whether (11d) is active at :math:`\omega^v` (a hypothesis of Theorem 3).
+    omega_hat, omega_v : ndarray
+        The estimate and the solution of (11) (``None`` unless solved).
+    lambda_set : ndarray of bool or None
+        :math:`\lambda = \{i : |\omega^v_i| > \tau\}`.
+    confounded : ndarray of bool
+        Dictionary columns in the span of :math:`\Phi_\theta` (excluded, see module notes).
+    mu : float
+    feature_names : tuple of str
+    """
+
+    certified: bool | None
+    reason: str
+    status: str
+    eta: float
+    threshold: float
+    margin: float
+    theorem2_bound: float
+    kappa_bar: int | None
+    sigma2: float
+    sigma2_exact: bool
+    constraint_active: bool | None
+    omega_hat: np.ndarray
+    omega_v: np.ndarray | None
+    lambda_set: np.ndarray | None
+    confounded: np.ndarray
+    mu: float
+    feature_names: tuple[str, ...]
+
+    @property
+    def verdict(self) -> str:
+        """``'yes'``, ``'cannot certify'`` or ``'not computed (solver status ...)'``."""
+        if self.certified is None:
+            return f"not computed (solver status '{self.status}')"
+        return "yes" if self.certified else "cannot certify"
+
+    def summary(self) -> str:
+        """The verdict with its margin and the quantities behind it."""
+        support = [n for n, w in zip(self.feature_names, self.omega_hat, strict=True) if w != 0]
+        kind = "exact" if self.sigma2_exact else "lower bound"
+        return "\n".join(
+            [
+                f"Locally maximally sparse: {self.verdict} -- {self.reason}",
+                f"  support (M = {len(support)}): {', '.join(support)}",
+                f"  eta(omega_hat) = {self.eta:.6g}, threshold tau = {self.threshold:.6g}, "
+                f"margin = {self.margin:.6g}",
+                f"  sigma^2_2M = {self.sigma2:.6g} ({kind}), kappa_bar = {self.kappa_bar}, "
+                f"(11d) active: {self.constraint_active}, mu = {self.mu:.6g}",
+            ]
+        )
+
+
+def _check_omega_hat(omega_hat, m: int) -> np.ndarray:
+    omega_hat = np.asarray(omega_hat, dtype=float).reshape(-1)
+    if omega_hat.shape != (m,) or not np.all(np.isfinite(omega_hat)):
+        raise ValueError(f"omega_hat must be {m} finite values (one per column of phi).")
+    if not np.any(omega_hat):
+        raise ValueError("omega_hat is all zero: an empty support has nothing to certify.")
+    return omega_hat
+
+
+def _verdict(threshold, eta, checks: dict) -> tuple[bool, str]:
+    """Condition (13) after the hypotheses it rests on (``checks``: name -> holds)."""
+    if not checks["feasible"]:
+        return (
+            False,
+            "omega_hat is not feasible: min_theta ||y - Phi_theta theta - Phi omega_hat|| > mu",
+        )
+    if checks["confounded"]:
+        return False, "the support uses a dictionary column in the span of the physics"
+    if not checks["active"]:
+        return False, "constraint (11d) is not active at omega^v (Theorem 3 hypothesis)"
+    if not np.isfinite(threshold):
+        return False, "sigma^2_2M is 0: some 2M projected columns are linearly dependent"
+    if not checks["lambda_in_support"]:
+        return False, "|omega^v_i| > tau off supp(omega_hat): a term outside the support is needed"
+    if threshold < eta:
+        return True, f"tau = {threshold:.4g} < eta(omega_hat) = {eta:.4g} (condition 13)"
+    return False, f"tau = {threshold:.4g} >= eta(omega_hat) = {eta:.4g} (condition 13 fails)"
+
+
+def certify_problem(
+    problem: LinearProblem,
+    omega_hat: np.ndarray,
+    *,
+    max_subsets: int = MAX_SUBSETS,
+    active_rtol: float = 1e-4,
+) -> SparsityCertificate:
+    """:func:`certify_sparsity` on an already validated :class:`LinearProblem`."""
+    omega_hat = _check_omega_hat(omega_hat, problem.n_features)
+    support = omega_hat != 0
+    eta = float(np.min(np.abs(omega_hat[support])))
+    geometry = _geometry(problem, int(support.sum()), max_subsets)
+    bound2 = support_threshold(problem, geometry, omega_hat)
+    status, omega_v = sparsity_vertex(problem, omega_hat)
+    common = dict(sigma2=geometry.sigma2, sigma2_exact=geometry.sigma2_exact, eta=eta)
+    common.update(omega_hat=omega_hat, confounded=~geometry.kept, mu=problem.mu)
+    common.update(feature_names=problem.feature_names, theorem2_bound=bound2, status=status)
+    if omega_v is None:
+        reason = f"program (11) not solved: cvxpy status '{status}'"
+        return _certificate(None, reason, common)
+    tau = support_threshold(problem, geometry, omega_v)
+    active = _residual_norm(problem, omega_v) >= problem.mu * (1 - active_rtol)
+    lam = np.abs(omega_v) > tau
+    checks = dict(active=active, lambda_in_support=not np.any(lam & ~support))
+    checks["feasible"] = _residual_norm(problem, omega_hat) <= problem.mu * (1 + active_rtol)
+    checks["confounded"] = bool(np.any(support & ~geometry.kept))
+    ok, reason = _verdict(tau, eta, checks)
+    vertex = dict(threshold=tau, margin=eta - tau, constraint_active=active, omega_v=omega_v)
+    vertex.update(lambda_set=lam, kappa_bar=int(support.sum() - lam.sum()))
+    return _certificate(ok, reason, {**common, **vertex})
+
+
+def _certificate(certified, reason: str, values: dict) -> SparsityCertificate:
+    """A :class:`SparsityCertificate`; quantities of (11) missing from ``values`` are unset."""
+    unset = dict(threshold=np.nan, margin=np.nan, constraint_active=None, omega_v=None)
+    unset.update(lambda_set=None, kappa_bar=None)
+    return SparsityCertificate(certified=certified, reason=reason, **{**unset, **values})
+
+
+def certify_sparsity(
+    phi_theta,
+    phi,
+    y,
+    mu: float,
+    omega_hat,
+    *,
+    max_subsets: int = MAX_SUBSETS,
+    active_rtol: float = 1e-4,
+    theta_names=None,
+    feature_names=None,
+) -> SparsityCertificate:
+    r"""Is the support of :math:`\hat\omega` the maximally sparse one? (Theorems 2-3, eqs. 11-13.)
+
+    Solves (11) for :math:`\omega^v`, computes :math:`\tau`, the bound (12) and the
+    verdict (13) on the linear problem :math:`y = \Phi_\theta\theta + \Phi\omega + \eta`,
+    :math:`\|\eta\|_2 \le \mu` (see the module notes for the interpretation of
+    :math:`\sigma^2_{2M}` and of confounded columns).
+
+    Parameters
+    ----------
+    phi_theta : array-like of shape (T, n_theta)
+        Physical regressors :math:`\Phi_\theta` (:math:`J_\theta` for Theorem 5).
+    phi : array-like of shape (T, m)
+        Dictionary :math:`\Phi` (:math:`J_\omega` for Theorem 5).
+    y : array-like of shape (T,)
+        Observations (the shifted residual :math:`\tilde z_\ell` for Theorem 5).
+    mu : float
+        Noise bound :math:`\mu > 0`.
+    omega_hat : array-like of shape (m,)
+        The estimate to certify; its exact zeros are the complement of the support.
+    max_subsets : int, default=20000
+        Enumeration limit for the exact :math:`\sigma^2_{2M}` (else a lower bound).
+    active_rtol : float, default=1e-4
+        (11d) counts as active when :math:`\|\Upsilon_0(y - \Phi\omega^v)\|_2 \ge
+        \mu(1 - \text{active\_rtol})`.
+    theta_names, feature_names : sequence of str, optional
+        Names for the summary.
+
+    Returns
+    -------
+    SparsityCertificate
+        ``certified`` is ``True`` (yes), ``False`` (cannot certify) or ``None`` when (11)
+        was not solved to optimality (the status is reported, no verdict is made).
+
+    Raises
+    ------
+    ValueError
+        On bad shapes, NaN/inf, :math:`\mu \le 0` or an all-zero ``omega_hat``.
+    """
+    problem = linear_problem(
+        phi_theta, phi, y, mu, theta_names=theta_names, feature_names=feature_names
+    )
+    return certify_problem(problem, omega_hat, max_subsets=max_subsets, active_rtol=active_rtol)

@@ -1,0 +1,350 @@
+r"""The convex sparse relaxation (10) of Donati et al. and the linear problem it lives on.
+
+A *linear-in-parameters* problem is the data model
+
+.. math::
+
+    y = \Phi_\theta\, \theta + \Phi\, \omega + \eta, \qquad \|\eta\|_2 \le \mu,
+
+with :math:`\Phi_\theta \in \mathbb{R}^{T \times n_\theta}` the physical regressors (the
+matrix :math:`\Xi` of eq. 7), :math:`\Phi \in \mathbb{R}^{T \times m}` the dictionary and
+:math:`\mu` a bound on the noise norm (Assumption 2). The relaxation (10) is
+
+.. math::
+
+    (\hat\theta, \hat\omega) = \arg\min_{\theta, \omega} \|\omega\|_1
+    \quad \text{s.t.} \quad \|y - \Phi_\theta \theta - \Phi \omega\|_2 \le \mu,
+
+with :math:`\theta` free (unpenalised). The same problem on the local linearisation of a
+multi-step fit (``y`` the shifted residual, :math:`\Phi_\theta = J_\theta`,
+:math:`\Phi = J_\omega`, see :mod:`._linearise`) is the local form of the multi-step
+relaxation (15).
+
+Numerics: the :math:`T`-row constraint is compressed exactly with a thin QR factorisation
+:math:`[\Phi_\theta\ \Phi] = QR`,
+:math:`\|y - Ax\|_2 = \|[Q^\top y - Rx;\ \|y - QQ^\top y\|_2]\|_2`, so every cone has
+:math:`n_\theta + m + 1` entries whatever :math:`T`; the dictionary columns are rescaled to
+unit norm inside the solver (the objective keeps the original :math:`\|\omega\|_1`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import cvxpy as cp
+import numpy as np
+
+__all__ = [
+    "LinearProblem",
+    "SparseRelaxation",
+    "linear_problem",
+    "sparse_relaxation",
+    "solve_status",
+]
+
+SOLVER = "CLARABEL"
+
+
+@dataclass(frozen=True)
+class LinearProblem:
+    r"""Validated data of :math:`y = \Phi_\theta \theta + \Phi \omega + \eta`,
+    :math:`\|\eta\|_2 \le \mu`.
+
+    Attributes
+    ----------
+    phi_theta : ndarray of shape (T, n_theta)
+    phi : ndarray of shape (T, m)
+    y : ndarray of shape (T,)
+    mu : float
+    theta_names, feature_names : tuple of str
+    """
+
+    phi_theta: np.ndarray
+    phi: np.ndarray
+    y: np.ndarray
+    mu: float
+    theta_names: tuple[str, ...]
+    feature_names: tuple[str, ...]
+
+    @property
+    def n_theta(self) -> int:
+        return self.phi_theta.shape[1]
+
+    @property
+    def n_features(self) -> int:
+        return self.phi.shape[1]
+
+
+def _finite_matrix(name: str, value, n_rows: int | None) -> np.ndarray:
+    """``value`` as a finite 2-D float array (a 1-D array is one column)."""
+    array = np.asarray(value, dtype=float)
+    array = array.reshape(-1, 1) if array.ndim == 1 else array
+    if array.ndim != 2:
+        raise ValueError(f"{name} must be a 2-D array, got shape {np.shape(value)}.")
+    if n_rows is not None and array.shape[0] != n_rows:
+        raise ValueError(f"{name} must have {n_rows} rows (len(y)), got shape {array.shape}.")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name} contains NaN or inf.")
+    return array
+
+
+def _names(name: str, names, count: int, prefix: str) -> tuple[str, ...]:
+    if names is None:
+        return tuple(f"{prefix}{i}" for i in range(count))
+    names = tuple(str(n) for n in names)
+    if len(names) != count:
+        raise ValueError(f"{name} must have {count} entries, got {len(names)}.")
+    return names
+
+
+def linear_problem(
+    phi_theta, phi, y, mu: float, *, theta_names=None, feature_names=None
+) -> LinearProblem:
+    r"""Validate the data of a linear-in-parameters problem.
+
+    Parameters
+    ----------
+    phi_theta : array-like of shape (T, n_theta)
+        Physical regressors :math:`\Phi_\theta` (``n_theta`` may be 0).
+    phi : array-like of shape (T, m)
+        Dictionary :math:`\Phi`.
+    y : array-like of shape (T,)
+        Observations.
+    mu : float
+        Noise bound :math:`\mu > 0` on :math:`\|\eta\|_2`.
+    theta_names, feature_names : sequence of str, optional
+        Names used in summaries (default ``theta0, ...`` and ``phi0, ...``).
+
+    Returns
+    -------
+    LinearProblem
+
+    Raises
+    ------
+    ValueError
+        On a wrong shape, NaN/inf, or :math:`\mu \le 0`.
+    """
+    y = np.asarray(y, dtype=float).reshape(-1)
+    if not np.all(np.isfinite(y)):
+        raise ValueError("y contains NaN or inf.")
+    if not (np.isfinite(mu) and mu > 0):
+        raise ValueError(f"mu must be a finite noise bound > 0, got {mu!r}.")
+    phi_theta = _finite_matrix("phi_theta", np.reshape(phi_theta, (len(y), -1)), len(y))
+    phi = _finite_matrix("phi", phi, len(y))
+    return LinearProblem(
+        phi_theta,
+        phi,
+        y,
+        float(mu),
+        _names("theta_names", theta_names, phi_theta.shape[1], "theta"),
+        _names("feature_names", feature_names, phi.shape[1], "phi"),
+    )
+
+
+def column_scales(matrix: np.ndarray) -> np.ndarray:
+    """Euclidean norm of every column, zero norms replaced by 1."""
+    norms = np.linalg.norm(matrix, axis=0)
+    return np.where(norms > 0, norms, 1.0)
+
+
+def compress(matrix: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    r"""``(R, c, r_perp)`` with :math:`\|y - Ax\|_2^2 = \|c - Rx\|_2^2 + r_\perp^2` for all x.
+
+    From the thin QR factorisation :math:`A = QR`: :math:`c = Q^\top y` and
+    :math:`r_\perp = \|y - Qc\|_2`. Exact for any ``A`` (rank-deficient included).
+    """
+    if matrix.shape[1] == 0:
+        return np.zeros((0, 0)), np.zeros(0), float(np.linalg.norm(y))
+    q, r = np.linalg.qr(matrix, mode="reduced")
+    c = q.T @ y
+    return r, c, float(np.linalg.norm(y - q @ c))
+
+
+def residual_cone(problem: LinearProblem, columns: np.ndarray):
+    """``(R, c, r_perp)`` for the stacked, scaled matrix ``[phi_theta, phi * columns]``.
+
+    ``columns`` are the per-column multipliers of the dictionary (a 0 removes a column
+    from the model; see :func:`scaled_dictionary`).
+    """
+    stacked = np.hstack([problem.phi_theta, problem.phi * columns])
+    return compress(stacked, problem.y)
+
+
+def scaled_dictionary(problem: LinearProblem) -> np.ndarray:
+    r"""Multipliers :math:`1/\|\varphi_j\|_2` with which the solver sees unit-norm columns."""
+    return 1.0 / column_scales(problem.phi)
+
+
+def residual_constraint(problem: LinearProblem, theta, w, scales: np.ndarray):
+    r"""The cone :math:`\|y - \Phi_\theta\theta - \Phi\,\mathrm{diag}(s)\,w\|_2 \le \mu`."""
+    r, c, r_perp = residual_cone(problem, scales)
+    x = cp.hstack([theta, w]) if problem.n_theta else w
+    return cp.norm(cp.hstack([c - r @ x, np.array([r_perp])]), 2) <= problem.mu
+
+
+def solve_status(prob: cp.Problem) -> str:
+    """Solve ``prob`` with Clarabel; the cvxpy status, or ``'solver_error: ...'``."""
+    try:
+        prob.solve(solver=SOLVER)
+    except cp.error.SolverError as error:
+        return f"solver_error: {error}"
+    return str(prob.status)
+
+
+def support_of(omega: np.ndarray, scales: np.ndarray, tol: float) -> np.ndarray:
+    r"""Entries whose contribution :math:`|\omega_j|\,\|\varphi_j\|` exceeds ``tol`` x the largest.
+
+    Interior-point solutions are never exactly sparse; this relative threshold on the
+    column-scaled coefficients separates the support from round-off.
+    """
+    contribution = np.abs(omega) * scales
+    top = np.max(contribution, initial=0.0)
+    return contribution > tol * top if top > 0 else np.zeros(omega.shape, bool)
+
+
+@dataclass(frozen=True)
+class SparseRelaxation:
+    r"""Solution of the relaxation (10) (or its local multi-step form (15)).
+
+    Attributes
+    ----------
+    status : str
+        cvxpy status (``'optimal'`` is the only one whose numbers are a solution).
+    theta, omega : ndarray or None
+        :math:`\hat\theta`, :math:`\hat\omega` (``None`` unless the solve is optimal).
+    support : ndarray of bool or None
+        :math:`\mathrm{supp}(\hat\omega)`.
+    residual_norm : float or None
+        :math:`\|y - \Phi_\theta\hat\theta - \Phi\hat\omega\|_2`.
+    mu : float
+    theta_names, feature_names : tuple of str
+    """
+
+    status: str
+    theta: np.ndarray | None
+    omega: np.ndarray | None
+    support: np.ndarray | None
+    residual_norm: float | None
+    mu: float
+    theta_names: tuple[str, ...] = field(default=())
+    feature_names: tuple[str, ...] = field(default=())
+
+    @property
+    def solved(self) -> bool:
+        """``True`` when cvxpy reports ``'optimal'``."""
+        return self.status == cp.OPTIMAL
+
+    def selected(self) -> list[str]:
+        """Names of the dictionary terms in the support."""
+        if self.support is None:
+            return []
+        return [n for n, keep in zip(self.feature_names, self.support, strict=True) if keep]
+
+    def summary(self) -> str:
+        """A few lines: status, support, coefficients and the residual against ``mu``."""
+        if not self.solved:
+            return f"Sparse relaxation (10): NOT SOLVED, cvxpy status '{self.status}'."
+        terms = ", ".join(
+            f"{n} = {w:.6g}"
+            for n, w, s in zip(self.feature_names, self.omega, self.support, strict=True)
+            if s
+        )
+        theta = ", ".join(
+            f"{n} = {v:.6g}" for n, v in zip(self.theta_names, self.theta, strict=True)
+        )
+        return "\n".join(
+            [
+                f"Sparse relaxation (10): optimal, |supp| = {int(self.support.sum())}",
+                f"  support: {terms or '(empty)'}",
+                f"  theta: {theta or '(none)'}",
+                f"  residual norm {self.residual_norm:.6g} <= mu = {self.mu:.6g}",
+            ]
+        )
+
+
+def _relaxation_result(problem, status, theta, w, scales, tol) -> SparseRelaxation:
+    if status != cp.OPTIMAL:
+        return SparseRelaxation(
+            status, None, None, None, None, problem.mu, problem.theta_names, problem.feature_names
+        )
+    omega = np.asarray(w.value, float) * scales
+    theta_hat = np.asarray(theta.value, float) if problem.n_theta else np.zeros(0)
+    residual = problem.y - problem.phi_theta @ theta_hat - problem.phi @ omega
+    support = support_of(omega, 1.0 / scales, tol)
+    return SparseRelaxation(
+        status,
+        theta_hat,
+        np.where(support, omega, 0.0),
+        support,
+        float(np.linalg.norm(residual)),
+        problem.mu,
+        problem.theta_names,
+        problem.feature_names,
+    )
+
+
+def solve_relaxation(problem: LinearProblem, *, support_tol: float = 1e-6) -> SparseRelaxation:
+    """:func:`sparse_relaxation` on an already validated :class:`LinearProblem`."""
+    scales = scaled_dictionary(problem)
+    theta = cp.Variable(problem.n_theta) if problem.n_theta else None
+    w = cp.Variable(problem.n_features)
+    objective = cp.Minimize(cp.sum(cp.multiply(scales, cp.abs(w))))
+    prob = cp.Problem(objective, [residual_constraint(problem, theta, w, scales)])
+    status = solve_status(prob)
+    return _relaxation_result(problem, status, theta, w, scales, support_tol)
+
+
+def sparse_relaxation(
+    phi_theta,
+    phi,
+    y,
+    mu: float,
+    *,
+    support_tol: float = 1e-6,
+    theta_names=None,
+    feature_names=None,
+) -> SparseRelaxation:
+    r"""Solve the convex relaxation (10): the smallest-:math:`\ell_1` correction within the bound.
+
+    .. math::
+
+        (\hat\theta, \hat\omega) = \arg\min_{\theta, \omega} \|\omega\|_1
+        \quad \text{s.t.} \quad \|y - \Phi_\theta\theta - \Phi\omega\|_2 \le \mu .
+
+    Parameters
+    ----------
+    phi_theta : array-like of shape (T, n_theta)
+        Physical regressors :math:`\Phi_\theta` (:math:`\Xi` in the paper); :math:`\theta` is
+        free.
+    phi : array-like of shape (T, m)
+        Dictionary :math:`\Phi`.
+    y : array-like of shape (T,)
+        Observations.
+    mu : float
+        Noise bound :math:`\mu > 0` (Assumption 2: :math:`\|\eta\|_2 \le \mu`).
+    support_tol : float, default=1e-6
+        An entry is in the support when :math:`|\hat\omega_j|\,\|\varphi_j\|_2` exceeds
+        ``support_tol`` times the largest such value (entries below are set to 0).
+    theta_names, feature_names : sequence of str, optional
+        Names for the summary.
+
+    Returns
+    -------
+    SparseRelaxation
+        With ``status`` other than ``'optimal'`` (e.g. ``'infeasible'`` when ``mu`` is below
+        the least-squares residual) the numbers are ``None``: a failed solve is never
+        reported as a solution.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> rng = np.random.default_rng(0)
+    >>> xi, phi = rng.normal(size=(200, 2)), rng.normal(size=(200, 6))
+    >>> y = xi @ [1.0, -2.0] + 3.0 * phi[:, 4] + rng.uniform(-0.01, 0.01, 200)
+    >>> sparse_relaxation(xi, phi, y, mu=0.2).selected()
+    ['phi4']
+    """
+    problem = linear_problem(
+        phi_theta, phi, y, mu, theta_names=theta_names, feature_names=feature_names
+    )
+    return solve_relaxation(problem, support_tol=support_tol)
