@@ -176,9 +176,12 @@ def scaled_dictionary(problem: LinearProblem) -> np.ndarray:
 
 
 def residual_constraint(problem: LinearProblem, theta, w, scales: np.ndarray):
-    r"""The cone :math:`\|y - \Phi_\theta\theta - \Phi\,\mathrm{diag}(s)\,w\|_2 \le \mu`."""
+    r"""The cone :math:`\|y - \Phi_\theta\theta - \Phi\,\mathrm{diag}(s)\,w\|_2 \le \mu`.
+
+    ``theta`` (resp. ``w``) is ``None`` when ``phi_theta`` (resp. ``phi``) has no column.
+    """
     r, c, r_perp = residual_cone(problem, scales)
-    x = cp.hstack([theta, w]) if problem.n_theta else w
+    x = cp.hstack([v for v in (theta, w) if v is not None])
     return cp.norm(cp.hstack([c - r @ x, np.array([r_perp])]), 2) <= problem.mu
 
 
