@@ -63,9 +63,8 @@ import numpy as np
 
 from ._relaxation import (
     LinearProblem,
+    feasible_region,
     linear_problem,
-    residual_constraint,
-    scaled_dictionary,
     solve_status,
 )
 
@@ -154,13 +153,10 @@ def restricted_eigenvalue(
 
 def _vertex_problem(problem: LinearProblem, omega_hat: np.ndarray, eta: float):
     """The convex program (11) and its variable ``omega`` (a cvxpy expression)."""
-    scales = scaled_dictionary(problem)
-    theta = cp.Variable(problem.n_theta) if problem.n_theta else None
-    w = cp.Variable(problem.n_features)
-    omega = cp.multiply(scales, w)
+    _, omega, cone = feasible_region(problem)
     on = np.flatnonzero(omega_hat)
     off = np.flatnonzero(omega_hat == 0)
-    constraints = [residual_constraint(problem, theta, w, scales)]
+    constraints = [cone]
     constraints.append(cp.multiply(np.sign(omega_hat[on]), omega[on]) >= eta)
     if off.size:
         constraints.append(cp.abs(omega[off]) <= eta)

@@ -40,9 +40,8 @@ import numpy as np
 from ._relaxation import (
     LinearProblem,
     column_scales,
+    feasible_region,
     linear_problem,
-    residual_constraint,
-    scaled_dictionary,
     solve_status,
 )
 
@@ -123,12 +122,9 @@ class FeasibleSetBounds:
 
 def _extreme_program(problem: LinearProblem):
     """The cone of ``problem`` with a parametric linear objective ``max c @ theta``."""
-    scales = scaled_dictionary(problem)
-    theta = cp.Variable(problem.n_theta)
-    w = cp.Variable(problem.n_features) if problem.n_features else None
+    theta, _, cone = feasible_region(problem)
     direction = cp.Parameter(problem.n_theta)
-    constraint = residual_constraint(problem, theta, w, scales)
-    return cp.Problem(cp.Maximize(direction @ theta), [constraint]), direction, theta
+    return cp.Problem(cp.Maximize(direction @ theta), [cone]), direction, theta
 
 
 def _extremes(problem: LinearProblem, indices: np.ndarray):
@@ -148,7 +144,7 @@ def _extremes(problem: LinearProblem, indices: np.ndarray):
 def unbounded_parameters(problem: LinearProblem, indices: np.ndarray, rtol: float = 1e-9):
     r"""Which ``theta[indices]`` the set leaves unbounded: a null direction of
     :math:`[\Phi_\theta\ \Phi]` (columns scaled to unit norm) that moves them."""
-    scales = np.concatenate([1.0 / column_scales(problem.phi_theta), scaled_dictionary(problem)])
+    scales = 1.0 / column_scales(np.hstack([problem.phi_theta, problem.phi]))
     stacked = np.hstack([problem.phi_theta, problem.phi]) * scales
     _, s, vt = np.linalg.svd(stacked, full_matrices=True)
     rank = int(np.sum(s > rtol * s[0])) if s.size else 0

@@ -40,6 +40,7 @@ __all__ = [
     "linear_problem",
     "sparse_relaxation",
     "solve_status",
+    "feasible_region",
 ]
 
 SOLVER = "CLARABEL"
@@ -160,29 +161,34 @@ def compress(matrix: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     return r, c, float(np.linalg.norm(y - q @ c))
 
 
-def residual_cone(problem: LinearProblem, columns: np.ndarray):
-    """``(R, c, r_perp)`` for the stacked, scaled matrix ``[phi_theta, phi * columns]``.
+def _unit_scales(problem: LinearProblem) -> tuple[np.ndarray, np.ndarray]:
+    """Column multipliers that give ``phi_theta`` and ``phi`` unit-norm columns."""
+    return 1.0 / column_scales(problem.phi_theta), 1.0 / column_scales(problem.phi)
 
-    ``columns`` are the per-column multipliers of the dictionary (a 0 removes a column
-    from the model; see :func:`scaled_dictionary`).
+
+def feasible_region(problem: LinearProblem):
+    r"""Expressions ``theta``, ``omega`` and the cone of :math:`\|y - A x\|_2 \le \mu`.
+
+    Written for accuracy relative to :math:`\mu` (a noise-free record can have
+    :math:`\mu \ll \|y\|`): with unit-norm columns :math:`A = [\Phi_\theta\ \Phi] D`, its
+    compressed form ``(R, c, r_perp)`` (:func:`compress`) and the least-squares solution
+    :math:`x_{LS}`, the variables are :math:`x = x_{LS} + \mu d` and the cone reads
+    :math:`\|[(c - Rx_{LS})/\mu - Rd;\ r_\perp/\mu]\|_2 \le 1`: every entry is of order
+    one. ``theta`` (``omega``) is ``None`` when there is no such column.
     """
-    stacked = np.hstack([problem.phi_theta, problem.phi * columns])
-    return compress(stacked, problem.y)
-
-
-def scaled_dictionary(problem: LinearProblem) -> np.ndarray:
-    r"""Multipliers :math:`1/\|\varphi_j\|_2` with which the solver sees unit-norm columns."""
-    return 1.0 / column_scales(problem.phi)
-
-
-def residual_constraint(problem: LinearProblem, theta, w, scales: np.ndarray):
-    r"""The cone :math:`\|y - \Phi_\theta\theta - \Phi\,\mathrm{diag}(s)\,w\|_2 \le \mu`.
-
-    ``theta`` (resp. ``w``) is ``None`` when ``phi_theta`` (resp. ``phi``) has no column.
-    """
-    r, c, r_perp = residual_cone(problem, scales)
-    x = cp.hstack([v for v in (theta, w) if v is not None])
-    return cp.norm(cp.hstack([c - r @ x, np.array([r_perp])]), 2) <= problem.mu
+    s_theta, s_omega = _unit_scales(problem)
+    r, c, r_perp = compress(
+        np.hstack([problem.phi_theta * s_theta, problem.phi * s_omega]), problem.y
+    )
+    x_ls = np.linalg.lstsq(r, c, rcond=None)[0]
+    d = cp.Variable(r.shape[1])
+    mu = problem.mu
+    cone = cp.norm(cp.hstack([(c - r @ x_ls) / mu - r @ d, np.array([r_perp / mu])]), 2) <= 1
+    x = x_ls + mu * d
+    n = problem.n_theta
+    theta = cp.multiply(s_theta, x[:n]) if n else None
+    omega = cp.multiply(s_omega, x[n:]) if problem.n_features else None
+    return theta, omega, cone
 
 
 def solve_status(prob: cp.Problem) -> str:
@@ -265,36 +271,25 @@ class SparseRelaxation:
         )
 
 
-def _relaxation_result(problem, status, theta, w, scales, tol) -> SparseRelaxation:
+def _relaxation_result(problem, status, theta, omega, tol) -> SparseRelaxation:
+    names = (problem.theta_names, problem.feature_names)
     if status != cp.OPTIMAL:
-        return SparseRelaxation(
-            status, None, None, None, None, problem.mu, problem.theta_names, problem.feature_names
-        )
-    omega = np.asarray(w.value, float) * scales
+        return SparseRelaxation(status, None, None, None, None, problem.mu, *names)
+    omega_hat = np.asarray(omega.value, float)
     theta_hat = np.asarray(theta.value, float) if problem.n_theta else np.zeros(0)
-    residual = problem.y - problem.phi_theta @ theta_hat - problem.phi @ omega
-    support = support_of(omega, 1.0 / scales, tol)
-    return SparseRelaxation(
-        status,
-        theta_hat,
-        np.where(support, omega, 0.0),
-        support,
-        float(np.linalg.norm(residual)),
-        problem.mu,
-        problem.theta_names,
-        problem.feature_names,
-    )
+    support = support_of(omega_hat, column_scales(problem.phi), tol)
+    omega_hat = np.where(support, omega_hat, 0.0)
+    residual = problem.y - problem.phi_theta @ theta_hat - problem.phi @ omega_hat
+    norm = float(np.linalg.norm(residual))
+    return SparseRelaxation(status, theta_hat, omega_hat, support, norm, problem.mu, *names)
 
 
 def solve_relaxation(problem: LinearProblem, *, support_tol: float = 1e-6) -> SparseRelaxation:
     """:func:`sparse_relaxation` on an already validated :class:`LinearProblem`."""
-    scales = scaled_dictionary(problem)
-    theta = cp.Variable(problem.n_theta) if problem.n_theta else None
-    w = cp.Variable(problem.n_features)
-    objective = cp.Minimize(cp.sum(cp.multiply(scales, cp.abs(w))))
-    prob = cp.Problem(objective, [residual_constraint(problem, theta, w, scales)])
+    theta, omega, cone = feasible_region(problem)
+    prob = cp.Problem(cp.Minimize(cp.norm(omega, 1)), [cone])
     status = solve_status(prob)
-    return _relaxation_result(problem, status, theta, w, scales, support_tol)
+    return _relaxation_result(problem, status, theta, omega, support_tol)
 
 
 def sparse_relaxation(
