@@ -330,7 +330,7 @@ def certify_problem(
     omega_hat: np.ndarray,
     *,
     max_subsets: int = MAX_SUBSETS,
-    active_rtol: float = 1e-4,
+    active_rtol: float = 1e-3,
 ) -> SparsityCertificate:
     """:func:`certify_sparsity` on an already validated :class:`LinearProblem`."""
     omega_hat = _check_omega_hat(omega_hat, problem.n_features)
@@ -372,7 +372,7 @@ def certify_sparsity(
     omega_hat,
     *,
     max_subsets: int = MAX_SUBSETS,
-    active_rtol: float = 1e-4,
+    active_rtol: float = 1e-3,
     theta_names=None,
     feature_names=None,
 ) -> SparsityCertificate:
@@ -397,9 +397,11 @@ def certify_sparsity(
         The estimate to certify; its exact zeros are the complement of the support.
     max_subsets : int, default=20000
         Enumeration limit for the exact :math:`\sigma^2_{2M}` (else a lower bound).
-    active_rtol : float, default=1e-4
+    active_rtol : float, default=1e-3
         (11d) counts as active when :math:`\|\Upsilon_0(y - \Phi\omega^v)\|_2 \ge
-        \mu(1 - \text{active\_rtol})`.
+        \mu(1 - \text{active\_rtol})` (interior-point solutions meet complementarity only
+        approximately; about 2e-4 was seen on a noise-free vehicle fit). The same tolerance
+        is allowed on the feasibility of ``omega_hat``.
     theta_names, feature_names : sequence of str, optional
         Names for the summary.
 

@@ -1,0 +1,45 @@
+"""The paper's guarantees, computable: identifiability, error bounds, sparsity certificates.
+
+``identifiability`` and ``parameter_error_bound`` differentiate the fitted multi-step cost
+(Assumption 1, Lemma 1 and Theorem 1 of Donati et al.).
+
+``sparse_relaxation``, ``certify_sparsity`` and ``feasible_parameter_set`` solve the convex
+problems (10), (11)-(13) and (19)-(20) on a linear-in-parameters problem with cvxpy;
+``linearise_estimator``, ``multistep_relaxation``, ``certify_estimator`` and
+``estimator_feasible_set`` apply them to the local linearisation of a fitted multi-step model
+(relaxation 15, Theorems 4-5).
+"""
+
+from ._bounds import ParameterErrorBound, induced_norm, parameter_error_bound
+from ._certificates import SparsityCertificate, certify_sparsity, restricted_eigenvalue
+from ._feasible import FeasibleSetBounds, feasible_parameter_set
+from ._identifiability import IdentifiabilityReport, UnidentifiableWarning, identifiability
+from ._linearise import (
+    Linearisation,
+    certify_estimator,
+    estimator_feasible_set,
+    linearise_estimator,
+    multistep_relaxation,
+)
+from ._relaxation import SparseRelaxation, sparse_relaxation
+
+__all__ = [
+    "FeasibleSetBounds",
+    "IdentifiabilityReport",
+    "Linearisation",
+    "ParameterErrorBound",
+    "SparseRelaxation",
+    "SparsityCertificate",
+    "UnidentifiableWarning",
+    "certify_estimator",
+    "certify_sparsity",
+    "estimator_feasible_set",
+    "feasible_parameter_set",
+    "identifiability",
+    "induced_norm",
+    "linearise_estimator",
+    "multistep_relaxation",
+    "parameter_error_bound",
+    "restricted_eigenvalue",
+    "sparse_relaxation",
+]
