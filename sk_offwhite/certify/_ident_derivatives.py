@@ -1,0 +1,116 @@
+r"""Derivatives of the multi-step cost at a fitted solution, with JAX.
+
+All functions take the flat vector ``free`` of certified variables :math:`p` and a
+:class:`~sk_offwhite._optim.Problem` (see :mod:`._ident_problem`); the model and the layout
+are static, so each function is compiled once per model structure and data shape.
+
+* :func:`cost_hessian` — :math:`H = \partial^2 C_T / \partial p^2`, forward-over-reverse
+  (``jacfwd`` of ``grad``): :math:`P` forward passes through one reverse pass.
+* :func:`output_jacobian` — the simulated outputs :math:`\hat z` and
+  :math:`J = \partial \hat z / \partial p` in forward mode (Gauss-Newton covariance).
+* :func:`mixed_derivatives` — :math:`G = \partial^2 C_T / \partial \eta\, \partial p` for the
+  three perturbations of Theorem 1: input noise :math:`\eta^u` (the model is simulated with
+  :math:`\tilde u = u + \eta^u`), output noise :math:`\eta^z` (:math:`\tilde z = z + \eta^z`)
+  and a model error :math:`\tilde\Delta_k` added to the state update of the system that
+  produced the data, whose effect on the data is taken to first order along the fitted model,
+  :math:`\tilde z \leftarrow \tilde z + \hat z(p^*; \tilde\Delta) - \hat z(p^*; 0)`.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+
+from .._layout import Layout
+from .._objective import residuals, rollout_segments
+from .._optim import Problem
+from .._rollout import Model, model_step, theta_dict
+
+__all__ = ["Perturbation", "cost_hessian", "mixed_derivatives", "output_jacobian"]
+
+
+class Perturbation(NamedTuple):
+    """Perturbations of the data, each of shape ``(n_segments, length, n)``."""
+
+    inputs: jax.Array
+    outputs: jax.Array
+    states: jax.Array
+
+
+def _params(free, problem: Problem, layout: Layout) -> dict:
+    return layout.unflatten(problem.base.at[problem.free_index].set(free))
+
+
+def cost(free, problem: Problem, model: Model, layout: Layout):
+    r""":math:`C_T = \|r\|^2` as a function of the certified variables."""
+    params = _params(free, problem, layout)
+    r = residuals(model, params, problem.segments, problem.omega_free, problem.weights)
+    return r @ r
+
+
+@partial(jax.jit, static_argnames=("model", "layout"))
+def cost_hessian(free, problem: Problem, *, model: Model, layout: Layout):
+    r"""Value, gradient and Hessian :math:`\partial^2 C_T/\partial p^2` (forward-over-reverse)."""
+    fun = partial(cost, problem=problem, model=model, layout=layout)
+    value, gradient = jax.value_and_grad(fun)(free)
+    return value, gradient, jax.jacfwd(jax.grad(fun))(free)
+
+
+def simulated_outputs(free, problem: Problem, model: Model, layout: Layout):
+    """Simulated outputs of every segment, shape ``(n_segments, length, n_outputs)``."""
+    _, outputs, _ = rollout_segments(model, _params(free, problem, layout), problem.segments)
+    return outputs
+
+
+@partial(jax.jit, static_argnames=("model", "layout"))
+def output_jacobian(free, problem: Problem, *, model: Model, layout: Layout):
+    r"""Outputs :math:`\hat z` and :math:`\partial \hat z/\partial p` (last axis), forward mode."""
+    fun = partial(simulated_outputs, problem=problem, model=model, layout=layout)
+    return fun(free), jax.jacfwd(fun)(free)
+
+
+def disturbed_outputs(model: Model, params: dict, segments, disturbance):
+    r"""Outputs of :math:`x_{k+1} = f(x_k, u_k) + S\delta(x_k, u_k) + d_k` per segment."""
+    theta = theta_dict(model, params["theta"])
+
+    def one(x0, u, d):
+        def advance(x, step):
+            u_k, d_k = step
+            z_k = jnp.atleast_1d(model.output(x, u_k, theta))
+            return model_step(model, params, x, u_k) + d_k, z_k
+
+        return jax.lax.scan(advance, x0, (u, d))[1]
+
+    return jax.vmap(one)(params["x0"], segments.u, disturbance)
+
+
+def perturbed_cost(free, perturbation: Perturbation, solution, problem, model, layout):
+    """:math:`C_T(p; \\eta^u, \\eta^z, \\tilde\\Delta)`; the data move, the model does not."""
+    segments = problem.segments
+    truth = _params(solution, problem, layout)
+    nominal = disturbed_outputs(model, truth, segments, jnp.zeros_like(perturbation.states))
+    response = disturbed_outputs(model, truth, segments, perturbation.states) - nominal
+    moved = segments._replace(
+        u=segments.u + perturbation.inputs, z=segments.z + perturbation.outputs + response
+    )
+    return cost(free, problem._replace(segments=moved), model, layout)
+
+
+@partial(jax.jit, static_argnames=("model", "layout"))
+def mixed_derivatives(free, problem: Problem, *, model: Model, layout: Layout) -> Perturbation:
+    r""":math:`G = \partial^2 C_T/\partial\eta\,\partial p` at zero perturbation.
+
+    Returns a :class:`Perturbation` whose fields have shape ``(n_segments, length, n, P)``.
+    """
+    segments = problem.segments
+    n_states = _params(free, problem, layout)["x0"].shape[-1]
+    zero = Perturbation(
+        jnp.zeros_like(segments.u),
+        jnp.zeros_like(segments.z),
+        jnp.zeros(segments.u.shape[:2] + (n_states,)),
+    )
+    noise_gradient = jax.grad(perturbed_cost, argnums=1)
+    return jax.jacfwd(noise_gradient, argnums=0)(free, zero, free, problem, model, layout)
