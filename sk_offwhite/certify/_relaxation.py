@@ -130,7 +130,7 @@ def linear_problem(
         raise ValueError("y contains NaN or inf.")
     if not (np.isfinite(mu) and mu > 0):
         raise ValueError(f"mu must be a finite noise bound > 0, got {mu!r}.")
-    phi_theta = _finite_matrix("phi_theta", np.reshape(phi_theta, (len(y), -1)), len(y))
+    phi_theta = _finite_matrix("phi_theta", phi_theta, len(y))
     phi = _finite_matrix("phi", phi, len(y))
     return LinearProblem(
         phi_theta,

@@ -1,0 +1,201 @@
+"""Sparse relaxation (10), certificates (Theorems 2-5) and FPS/SFPS (19)-(20).
+
+A linear-in-parameters problem with a known sparse truth (3 physical parameters, 10
+dictionary columns, 2 of them active, bounded noise with ``mu`` twice its norm) gives exact
+answers; the vehicle of Section 5.1 (noise-free, short record) checks the multi-step, local
+version through the fitted estimator.
+"""
+
+import itertools
+import warnings
+
+import numpy as np
+import pytest
+
+from sk_offwhite import GreyBoxSparseRegressor
+from sk_offwhite.certify import (
+    certify_estimator,
+    certify_sparsity,
+    estimator_feasible_set,
+    feasible_parameter_set,
+    linearise_estimator,
+    restricted_eigenvalue,
+    sparse_relaxation,
+)
+from sk_offwhite.datasets import make_vehicle_lateral
+
+THETA = np.array([1.0, -2.0, 0.5])
+TRUE_SUPPORT = [2, 7]
+
+
+@pytest.fixture(scope="module")
+def linear_case():
+    rng = np.random.default_rng(0)
+    xi, phi = rng.normal(size=(400, 3)), rng.normal(size=(400, 10))
+    omega = np.zeros(10)
+    omega[TRUE_SUPPORT] = [2.0, -1.5]
+    noise = rng.uniform(-0.01, 0.01, 400)
+    y = xi @ THETA + phi @ omega + noise
+    return {"xi": xi, "phi": phi, "y": y, "omega": omega, "mu": 2.0 * np.linalg.norm(noise)}
+
+
+def _args(case):
+    return case["xi"], case["phi"], case["y"], case["mu"]
+
+
+def _least_squares_on(case, support):
+    """A feasible estimate using exactly the columns ``support``."""
+    stacked = np.hstack([case["xi"], case["phi"][:, support]])
+    coef = np.linalg.lstsq(stacked, case["y"], rcond=None)[0]
+    omega = np.zeros(10)
+    omega[support] = coef[3:]
+    return omega
+
+
+def test_relaxation_recovers_the_true_support(linear_case):
+    result = sparse_relaxation(*_args(linear_case))
+    assert result.solved
+    np.testing.assert_array_equal(np.flatnonzero(result.support), TRUE_SUPPORT)
+    assert result.selected() == ["phi2", "phi7"]
+    assert result.residual_norm <= linear_case["mu"] * (1 + 1e-6)
+    np.testing.assert_allclose(result.theta, THETA, atol=0.02)
+
+
+def test_certificate_holds_on_the_relaxation_support(linear_case):
+    relaxation = sparse_relaxation(*_args(linear_case))
+    cert = certify_sparsity(*_args(linear_case), relaxation.omega)
+    assert cert.certified is True and cert.verdict == "yes"
+    assert cert.margin > 0 and cert.threshold < cert.eta
+    assert cert.kappa_bar == 0 and cert.sigma2_exact
+    np.testing.assert_array_equal(np.flatnonzero(cert.lambda_set), TRUE_SUPPORT)
+    assert "yes" in cert.summary()
+
+
+@pytest.mark.parametrize("extra", [[4], [4, 5]])
+def test_spurious_terms_are_not_certified(linear_case, extra):
+    omega_hat = _least_squares_on(linear_case, TRUE_SUPPORT + extra)
+    cert = certify_sparsity(*_args(linear_case), omega_hat)
+    assert cert.status == "optimal"
+    assert cert.certified is False and cert.verdict == "cannot certify"
+    assert cert.margin < 0
+    assert cert.kappa_bar == len(extra)  # bound (12): at most this many terms too many
+
+
+def test_a_missing_term_is_not_certified(linear_case):
+    omega_hat = _least_squares_on(linear_case, TRUE_SUPPORT[:1])
+    cert = certify_sparsity(*_args(linear_case), omega_hat)
+    assert cert.certified is not True
+
+
+def test_fps_contains_the_truth_and_sfps_is_tighter(linear_case):
+    relaxation = sparse_relaxation(*_args(linear_case))
+    fps = feasible_parameter_set(*_args(linear_case), relaxation.theta)
+    sfps = feasible_parameter_set(*_args(linear_case), relaxation.theta, support=relaxation.support)
+    assert fps.solved and sfps.solved and (fps.kind, sfps.kind) == ("FPS", "SFPS")
+    assert fps.contains(THETA) and sfps.contains(THETA)
+    assert np.all(sfps.lower >= fps.lower - 1e-9) and np.all(sfps.upper <= fps.upper + 1e-9)
+    assert np.all(sfps.worst_case <= fps.worst_case + 1e-9)
+    assert sfps.worst_case_norm <= fps.worst_case_norm
+    assert "worst-case error" in fps.summary()
+
+
+def test_fps_extremes_match_the_ellipsoid(linear_case):
+    """FPS is an ellipsoid: theta_i extremes are x_ls,i +- sqrt((mu^2 - r^2) (A'A)^-1_ii)."""
+    xi, phi, y, mu = _args(linear_case)
+    stacked = np.hstack([xi, phi])
+    x_ls, r2 = np.linalg.lstsq(stacked, y, rcond=None)[:2]
+    radius = np.sqrt((mu**2 - r2[0]) * np.diag(np.linalg.inv(stacked.T @ stacked)))[:3]
+    fps = feasible_parameter_set(xi, phi, y, mu, x_ls[:3])
+    np.testing.assert_allclose(fps.lower, x_ls[:3] - radius, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(fps.upper, x_ls[:3] + radius, rtol=0, atol=1e-8)
+    np.testing.assert_allclose(fps.worst_case, radius, atol=1e-8)
+
+
+def test_an_infeasible_mu_is_reported_not_turned_into_a_verdict(linear_case):
+    xi, phi, y, mu = _args(linear_case)
+    relaxation = sparse_relaxation(xi, phi, y, 1e-3 * mu)
+    assert not relaxation.solved and relaxation.status == "infeasible"
+    assert relaxation.omega is None and "NOT SOLVED" in relaxation.summary()
+    cert = certify_sparsity(xi, phi, y, 1e-3 * mu, linear_case["omega"])
+    assert cert.certified is None and cert.status == "infeasible"
+    assert cert.verdict.startswith("not computed")
+    fps = feasible_parameter_set(xi, phi, y, 1e-3 * mu, THETA)
+    assert fps.status == "infeasible" and fps.worst_case is None
+
+
+def test_a_dictionary_column_equal_to_a_regressor(linear_case):
+    """Confounded with theta0: FPS unbounded in theta0, the certificate ignores the column."""
+    xi, phi, y, mu = _args(linear_case)
+    augmented = np.hstack([phi, xi[:, :1]])
+    fps = feasible_parameter_set(xi, augmented, y, mu, THETA)
+    assert fps.status.startswith("unbounded") and "theta0" in fps.status
+    omega_hat = np.append(sparse_relaxation(xi, phi, y, mu).omega, 0.0)
+    cert = certify_sparsity(xi, augmented, y, mu, omega_hat)
+    assert cert.certified is True and cert.confounded.tolist() == [False] * 10 + [True]
+
+
+def test_restricted_eigenvalue_exact_and_bound():
+    q = np.random.default_rng(1).normal(size=(30, 7))
+    brute = min(
+        np.linalg.eigvalsh(q[:, s].T @ q[:, s])[0] for s in itertools.combinations(range(7), 3)
+    )
+    exact, is_exact = restricted_eigenvalue(q, 3)
+    assert is_exact and exact == pytest.approx(brute, rel=1e-12)
+    bound, is_exact = restricted_eigenvalue(q, 3, max_subsets=10)
+    assert not is_exact and 0 <= bound <= exact
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ({"mu": 0.0}, "mu"),
+        ({"mu": -1.0}, "mu"),
+        ({"y": np.full(400, np.nan)}, "y"),
+        ({"phi": np.ones((399, 10))}, "phi"),
+        ({"xi": np.ones((400, 2, 2))}, "phi_theta"),
+    ],
+)
+def test_bad_input_names_the_argument(linear_case, change, message):
+    args = {**linear_case, **change}
+    with pytest.raises(ValueError, match=message):
+        sparse_relaxation(args["xi"], args["phi"], args["y"], args["mu"])
+
+
+def test_all_zero_estimate_is_rejected(linear_case):
+    with pytest.raises(ValueError, match="omega_hat"):
+        certify_sparsity(*_args(linear_case), np.zeros(10))
+
+
+@pytest.fixture(scope="module")
+def vehicle_fit():
+    """Noise-free vehicle, 300 samples, the gamma continuation of tests/test_vehicle.py."""
+    data = make_vehicle_lateral(n_samples=300, noise_bound=0.0, random_state=0)
+    scale = float(np.mean(data.z**2))
+    est = GreyBoxSparseRegressor(
+        data.physics, data.suggested_library, gamma=1e-7 * scale, delta_states=[0], max_iter=1000
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        est.fit(data.u, data.z)
+        est.set_params(gamma=1e-11 * scale, warm_start=True).fit(data.u, data.z)
+    lin = linearise_estimator(est, data.u, data.z)
+    return data, est, lin, 2.0 * np.linalg.norm(lin.residual)
+
+
+def test_vehicle_local_certificate_holds_on_the_true_support(vehicle_fit):
+    data, est, lin, mu = vehicle_fit
+    assert lin.jac_theta.shape == (300, 10) and lin.jac_omega.shape == (300, 12)
+    cert = certify_estimator(est, data.u, data.z, mu, linearisation=lin)
+    assert cert.certified is True, cert.summary()
+    np.testing.assert_array_equal(cert.omega_hat != 0, data.true_omega != 0)
+    assert cert.kappa_bar == 0
+    assert cert.confounded[lin.feature_names.index("x4 x6")]  # duplicate of theta4 x4 x6
+
+
+def test_vehicle_sfps_contains_the_truth_and_fps_is_unbounded(vehicle_fit):
+    data, est, lin, mu = vehicle_fit
+    theta_bar = [data.true_parameters[n] for n in est.physics_.parameter_names]
+    sfps = estimator_feasible_set(est, None, None, mu, support="fit", linearisation=lin)
+    assert sfps.solved and sfps.contains(theta_bar)
+    fps = estimator_feasible_set(est, None, None, mu, linearisation=lin)
+    assert fps.status.startswith("unbounded") and "theta4" in fps.status
