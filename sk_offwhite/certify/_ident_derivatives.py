@@ -91,8 +91,8 @@ def perturbed_cost(free, perturbation: Perturbation, solution, problem, model, l
     """:math:`C_T(p; \\eta^u, \\eta^z, \\tilde\\Delta)`; the data move, the model does not."""
     segments = problem.segments
     truth = _params(solution, problem, layout)
-    nominal = disturbed_outputs(model, truth, segments, jnp.zeros_like(perturbation.states))
-    response = disturbed_outputs(model, truth, segments, perturbation.states) - nominal
+    disturbed = disturbed_outputs(model, truth, segments, perturbation.states)
+    response = disturbed - jax.lax.stop_gradient(disturbed)  # value 0, derivative d z / d Delta
     moved = segments._replace(
         u=segments.u + perturbation.inputs, z=segments.z + perturbation.outputs + response
     )
