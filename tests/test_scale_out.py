@@ -1,0 +1,46 @@
+"""GridSearchCV of the estimator on a dask.distributed cluster matches the local result."""
+
+import numpy as np
+import pytest
+from sklearn.model_selection import GridSearchCV, KFold
+
+from sk_offwhite import GreyBoxSparseRegressor
+from sk_offwhite.datasets import cascaded_tanks_physics, make_cascaded_tanks
+
+distributed = pytest.importorskip("dask.distributed")
+joblib = pytest.importorskip("joblib")
+
+GAMMAS = [1e-4, 1e-2]
+
+
+def _search():
+    data = make_cascaded_tanks(
+        n_samples=160, overflow=False, saturation=False, noise_std=0.01, random_state=0
+    )
+    physics = cascaded_tanks_physics(fixed={"k4": data.true_parameters["k4"]})
+    est = GreyBoxSparseRegressor(physics, max_iter=20, init_window=10)
+    search = GridSearchCV(est, {"gamma": GAMMAS}, cv=KFold(2))
+    return search, data.u, data.z
+
+
+def _fit(search, u, z):
+    return search.fit(u, z, sample_index=np.arange(len(u)))
+
+
+@pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+def test_grid_search_on_local_dask_cluster_matches_local_run():
+    local = _fit(*_search())
+    cluster = distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+        dashboard_address=None,
+    )  # fmt: skip
+    with cluster, distributed.Client(cluster) as client:
+        search, u, z = _search()
+        with joblib.parallel_backend("dask"):
+            remote = _fit(search, u, z)
+        workers = client.scheduler_info()["workers"]
+    assert len(workers) == 2
+    assert remote.best_params_ == local.best_params_
+    np.testing.assert_allclose(
+        remote.cv_results_["mean_test_score"], local.cv_results_["mean_test_score"], rtol=1e-8
+    )
