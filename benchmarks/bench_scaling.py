@@ -1,6 +1,6 @@
 """How sk_offwhite's cost grows: record length, dictionary size and a γ grid search.
 
-Run with ``python benchmarks/bench_scaling.py [--quick] [--out benchmarks/results]``.
+Run with ``python benchmarks/bench_scaling.py [--quick] [--out reports/benchmarks]``.
 On noise-free Cascaded Tanks data (eq. 21, k4 fixed) it measures
 
 * microseconds per simulated step of one value-and-gradient of the multi-step cost,
@@ -168,7 +168,7 @@ def run(quick: bool) -> dict:
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
-    parser.add_argument("--out", default="benchmarks/results")
+    parser.add_argument("--out", default="reports/benchmarks")
     args = parser.parse_args(argv)
     from run_all import machine  # the benchmarks folder is on sys.path when run as a script
 

@@ -1,6 +1,6 @@
 """Accuracy benchmark: every system, sk_offwhite against pysindy baselines, in free run.
 
-Run with ``python benchmarks/run_all.py [--quick] [--out benchmarks/results]``. For each
+Run with ``python benchmarks/run_all.py [--quick] [--out reports/benchmarks]``. For each
 system (the measured Cascaded Tanks, the vehicle of Section 5.1, and the synthetic systems
 with an undeclared effect) it fits, on the estimation record only:
 
@@ -305,7 +305,7 @@ def loop_settings(quick: bool) -> LoopSettings:
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="shorter records, smaller grids")
-    parser.add_argument("--out", default="benchmarks/results")
+    parser.add_argument("--out", default="reports/benchmarks")
     parser.add_argument("--only", default=None, help="run the systems whose name contains this")
     args = parser.parse_args(argv)
     info, rows = machine(), []
