@@ -100,6 +100,8 @@ class DelaySINDyRegressor(RegressorMixin, BaseEstimator):
         First outputs of the first fitting record: the default start of :meth:`predict`.
     output_box_ : tuple of ndarray
         Bounds of the free run (see ``clip_margin``).
+    embedding_ : Embedding
+        Lags and square roots of the fitted model.
     n_features_in_, n_outputs_ : int
         Numbers of inputs and outputs.
     """
@@ -145,13 +147,8 @@ class DelaySINDyRegressor(RegressorMixin, BaseEstimator):
         self.clip_margin = clip_margin
         self.init_window = init_window
 
-    @property
-    def embedding_(self) -> Embedding:
-        """The delay embedding of the fitted model."""
-        return Embedding(self.n_output_lags, self.n_input_lags, self.sqrt_outputs)
-
     def _embedded(self, records):
-        embedding = Embedding(self.n_output_lags, self.n_input_lags, self.sqrt_outputs)
+        embedding = self.embedding_
         need = history_length(embedding) + 1
         usable = [(u, z) for u, z in records if u.shape[0] > need]
         if not usable:
@@ -186,6 +183,7 @@ class DelaySINDyRegressor(RegressorMixin, BaseEstimator):
         self._z_was_1d = z.ndim == 1
         z = z.reshape(len(z), -1)
         self.n_features_in_, self.n_outputs_ = u.shape[1], z.shape[1]
+        self.embedding_ = Embedding(self.n_output_lags, self.n_input_lags, self.sqrt_outputs)
         embedded, records = self._embedded(split_at_gaps(u, z, sample_index))
         self._fit_pysindy(embedded)
         self.history_ = records[0][1][: history_length(self.embedding_)].copy()
