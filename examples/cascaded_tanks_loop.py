@@ -32,8 +32,8 @@ def main(argv=None):
     data = load_cascaded_tanks()
     physics = cascaded_tanks_physics(fixed={"k4": 0.05})
     settings = LoopSettings(
-        gammas=(1e-4, 1e-3) if args.quick else (1e-5, 1e-4, 1e-3, 1e-2),
-        max_iter=100 if args.quick else 300,
+        gammas=(1e-2, 1.0) if args.quick else (1e-3, 1e-2, 1e-1, 1.0),
+        max_iter=60 if args.quick else 300,
         max_effects=1 if args.quick else 3,
     )
     start = time.perf_counter()

@@ -1,7 +1,16 @@
 """sk_offwhite: physics-based multi-step system identification with sparse corrections."""
 
 from ._basis import RidgeBasis, compile_basis
-from ._effects import Effect, Friction, Leak, OutputSaturation, Overflow, augment
+from ._effects import (
+    Effect,
+    Friction,
+    InputSaturation,
+    Leak,
+    OutputOffset,
+    OutputSaturation,
+    Overflow,
+    augment,
+)
 from ._estimator import GreyBoxSparseRegressor, expected_failed_checks
 from ._physics import Parameter, PhysicsModel
 
@@ -9,7 +18,9 @@ __all__ = [
     "Effect",
     "Friction",
     "GreyBoxSparseRegressor",
+    "InputSaturation",
     "Leak",
+    "OutputOffset",
     "OutputSaturation",
     "Overflow",
     "Parameter",

@@ -382,10 +382,15 @@ def _check_against_transform(library: Any, phi: FeatureFn, names: tuple[str, ...
 
 
 def _concat_features(parts: list[tuple[FeatureFn, np.ndarray]]) -> FeatureFn:
-    """Concatenate sub-features ``φ_k(v[idx_k])`` in order."""
+    """Concatenate sub-features ``φ_k(v[idx_k])`` in order.
+
+    Indices are kept as Python ints and made arrays at trace time, in the integer width of
+    the JAX precision in force (mixing numpy ``int64`` with 32-bit JAX fails to index).
+    """
+    parts = [(fn, tuple(int(i) for i in np.ravel(idx))) for fn, idx in parts]
 
     def phi(v: jnp.ndarray) -> jnp.ndarray:
-        return jnp.concatenate([fn(v[idx]) for fn, idx in parts])
+        return jnp.concatenate([fn(v[jnp.asarray(idx)]) for fn, idx in parts])
 
     return phi
 

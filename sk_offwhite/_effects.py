@@ -23,7 +23,17 @@ import jax.numpy as jnp
 
 from ._physics import Parameter, PhysicsModel
 
-__all__ = ["Effect", "Friction", "Leak", "Overflow", "OutputSaturation", "augment", "hinge"]
+__all__ = [
+    "Effect",
+    "Friction",
+    "InputSaturation",
+    "Leak",
+    "OutputOffset",
+    "OutputSaturation",
+    "Overflow",
+    "augment",
+    "hinge",
+]
 
 
 def hinge(a, sharpness: float):
@@ -34,9 +44,9 @@ def hinge(a, sharpness: float):
 class Effect:
     """Base class: an effect acting on the state update and/or the output map.
 
-    Subclasses set ``name``, ``target`` (``"state"`` or ``"output"``), ``index`` (the state
-    equation or output it acts on) and implement :meth:`parameters` and one of
-    :meth:`apply_state` / :meth:`apply_output`.
+    Subclasses set ``name`` and ``target`` (``"input"``, ``"state"`` or ``"output"``) and
+    implement :meth:`parameters` and one of :meth:`apply_input` (before the declared step),
+    :meth:`apply_state` (after it) or :meth:`apply_output`.
     """
 
     target = "state"
@@ -44,6 +54,10 @@ class Effect:
     def parameters(self) -> dict[str, Parameter]:
         """The effect's own parameters, with initial values and bounds."""
         raise NotImplementedError
+
+    def apply_input(self, x, u, theta):
+        """Return the input the declared step sees (identity by default)."""
+        return u
 
     def apply_state(self, x, u, x_next, theta):
         """Return the state update after the effect (identity by default)."""
@@ -148,6 +162,53 @@ class OutputSaturation(Effect):
         return f"the measured {output_names[self.output]} saturates at an upper level"
 
 
+class InputSaturation(Effect):
+    r"""Input ``input`` reaches the physics through a saturating actuator.
+
+    :math:`u_j \leftarrow u_{max} \tanh(u_j / u_{max})` before the declared step (linear
+    for :math:`|u_j| \ll u_{max}`, bounded by :math:`u_{max}`); parameter
+    ``{name}_level`` (:math:`u_{max} > 0`).
+    """
+
+    target = "input"
+
+    def __init__(self, input: int, level: float, *, name: str = "actuator"):
+        self.input, self.level, self.name = int(input), float(level), name
+
+    def parameters(self) -> dict[str, Parameter]:
+        return {f"{self.name}_level": Parameter(self.level, (1e-6, None))}
+
+    def apply_input(self, x, u, theta):
+        level = theta[f"{self.name}_level"]
+        return u.at[self.input].set(level * jnp.tanh(u[self.input] / level))
+
+    def describe(self, state_names, output_names) -> str:
+        return "the actuator saturates: the input acts as u_max tanh(u / u_max)"
+
+
+class OutputOffset(Effect):
+    r"""The measured output reads the model output plus a constant: :math:`z \leftarrow z + b`.
+
+    An uncalibrated sensor whose zero is not the physical zero of the state it measures;
+    the dynamics then act on the physical level :math:`z - b`. Parameter ``{name}_offset``
+    (:math:`b`).
+    """
+
+    target = "output"
+
+    def __init__(self, output: int, *, offset: float = 0.0, name: str = "sensor"):
+        self.output, self.offset, self.name = int(output), float(offset), name
+
+    def parameters(self) -> dict[str, Parameter]:
+        return {f"{self.name}_offset": Parameter(self.offset)}
+
+    def apply_output(self, x, u, z, theta):
+        return z.at[self.output].add(theta[f"{self.name}_offset"])
+
+    def describe(self, state_names, output_names) -> str:
+        return f"the sensor of {output_names[self.output]} reads with a constant offset"
+
+
 class Leak(Effect):
     r"""A loss proportional to the state: :math:`x^+_s \leftarrow x^+_s - c\, x_s`.
 
@@ -195,13 +256,16 @@ class Friction(Effect):
 
 
 class AugmentedStep:
-    """``step`` of an augmented model: the base step, then each state effect in turn."""
+    """``step`` of an augmented model: input effects, the base step, then state effects."""
 
     def __init__(self, base, effects: tuple[Effect, ...]):
         self.base, self.effects = base, effects
 
     def __call__(self, x, u, theta):
-        x_next = jnp.asarray(self.base(x, u, theta), dtype=x.dtype).reshape(x.shape)
+        u_seen = u
+        for effect in self.effects:
+            u_seen = effect.apply_input(x, u_seen, theta)
+        x_next = jnp.asarray(self.base(x, u_seen, theta), dtype=x.dtype).reshape(x.shape)
         for effect in self.effects:
             x_next = effect.apply_state(x, u, x_next, theta)
         return x_next
@@ -258,7 +322,7 @@ def augment(physics: PhysicsModel, *effects: Effect) -> PhysicsModel:
     for effect in effects:
         if not isinstance(effect, Effect):
             raise TypeError(f"effects must be Effect instances, got {effect!r}.")
-    states = tuple(e for e in effects if e.target == "state")
+    states = tuple(e for e in effects if e.target in ("input", "state"))
     outputs = tuple(e for e in effects if e.target == "output")
     model = PhysicsModel.__new__(PhysicsModel)
     model.__dict__.update(physics.__dict__)

@@ -3,12 +3,13 @@
 import numpy as np
 import pytest
 
-from sk_offwhite import Leak, OutputSaturation, Overflow
+from sk_offwhite import Friction, InputSaturation, Leak, OutputOffset, OutputSaturation, Overflow
 from sk_offwhite.datasets import make_leaky_tank
 from sk_offwhite.diagnose import range_violations
 from sk_offwhite.loop import (
     Hypothesis,
     LoopSettings,
+    Term,
     close_the_loop,
     propose_effects,
     score_models,
@@ -74,8 +75,41 @@ def test_proposals_follow_the_sign_region_and_measured_ceiling():
     loss = Hypothesis("x1", 0, ("x1",), -1, ("x1", 8.0, np.inf), (), "x1 loses.")
     z = np.minimum(states[:, 1:], 9.0)
     facts = range_violations(z, states[:, 1:], ["x2"])
-    proposals = [c.effect for c in propose_effects([loss], facts, ("x1", "x2"), ["x2"], states)]
-    assert Overflow(0, 8.0, name="overflow_x1") in proposals
-    assert Overflow(0, 8.0, sink=1, name="overflow_x1_to_x2") in proposals
-    assert Leak(0, name="leak_x1") in proposals
-    assert OutputSaturation(0, 9.0, name="saturation_x2") in proposals
+    proposals = propose_effects([loss], facts, ("x1", "x2"), ["x2"], states, measured=(1,))
+    effects = [c.effect for c in proposals]
+    assert Overflow(0, 8.0, sink=1, name="overflow_x1_to_x2") in effects
+    assert Leak(0, name="leak_x1") in effects and Friction(0, name="friction_x1") in effects
+    assert OutputSaturation(0, 9.0, name="saturation_x2") in effects
+    assert Overflow(1, 9.0, name="overflow_x2") in effects
+    assert not any(isinstance(e, OutputOffset) for e in effects)
+
+
+def test_a_constant_term_on_a_measured_state_proposes_a_sensor_offset():
+    states = np.linspace(0.0, 10.0, 200)[:, None] * np.ones((1, 2))
+    bias = Term("x2", "1", 0.2, 0.2, 1.0, ())
+    gain = Hypothesis("x2", 1, (), 1, None, (bias,), "x2 gains.")
+    effects = [c.effect for c in propose_effects([gain], [], ("x1", "x2"), ["x2"], states, (1,))]
+    assert OutputOffset(0, name="offset_x2") in effects
+    assert Overflow(0, float(np.quantile(states[:, 0], 0.8)), sink=1, name="overflow_x1_to_x2") in (
+        effects
+    )
+
+
+def test_an_input_term_proposes_an_actuator_saturation():
+    u = np.linspace(-2.0, 2.0, 101)[:, None]
+    hyp = Hypothesis("w", 0, ("u",), -1, None, (), "w lacks a term in u.")
+    effects = [
+        c.effect for c in propose_effects([hyp], [], ("w",), ["w"], u, u=u, input_names=("u",))
+    ]
+    assert InputSaturation(0, float(np.quantile(np.abs(u), 0.9)), name="actuator_u") in effects
+    assert Overflow(0, float(np.quantile(u, 0.8)), name="overflow_w") in effects
+
+
+def test_candidates_are_unique_by_name():
+    states = np.ones((10, 2))
+    hyps = [
+        Hypothesis("x1", 0, ("x1",), -1, None, (), "x1 loses."),
+        Hypothesis("x2", 1, ("x1",), 1, None, (), "x2 gains."),
+    ]
+    names = [c.effect.name for c in propose_effects(hyps, [], ("x1", "x2"), ["x2"], states)]
+    assert len(names) == len(set(names)) and "overflow_x1_to_x2" in names

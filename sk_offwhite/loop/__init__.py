@@ -8,9 +8,16 @@ their own.
 
 from ._candidates import Candidate, propose_effects
 from ._hypotheses import Hypothesis, Term, form_hypotheses, rank_terms
-from ._loop import LoopResult, LoopSettings, analyse_model, close_the_loop, fit_continued
+from ._loop import (
+    LoopResult,
+    LoopSettings,
+    analyse_model,
+    close_the_loop,
+    fit_continued,
+    warm_physics,
+)
 from ._report import write_report
-from ._scoring import score_models
+from ._scoring import held_out_rmse, score_models
 
 __all__ = [
     "Candidate",
@@ -22,8 +29,10 @@ __all__ = [
     "close_the_loop",
     "fit_continued",
     "form_hypotheses",
+    "held_out_rmse",
     "propose_effects",
     "rank_terms",
     "score_models",
+    "warm_physics",
     "write_report",
 ]

@@ -14,6 +14,7 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass, field
 
+import jax
 import numpy as np
 
 from ..diagnose import residual_regions
@@ -57,7 +58,8 @@ def _features(est, run, u) -> np.ndarray:
 
     basis, _ = est._compile(est.physics_)
     v = np.hstack([run.states, np.asarray(u, float)])
-    phi = np.asarray(evaluate_matrix(basis, est.inner_params_, v))
+    with jax.enable_x64(True):
+        phi = np.asarray(evaluate_matrix(basis, est.inner_params_, v))
     return phi * est.coef_[None]
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import warnings
 from pathlib import Path
 
 import matplotlib
@@ -11,6 +12,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from ..certify import UnidentifiableWarning, identifiability  # noqa: E402
 from ._loop import analyse_model  # noqa: E402
 from ._scoring import MODEL_LABELS  # noqa: E402
 
@@ -63,8 +65,19 @@ def _figure_correction(result, u, path: Path) -> bool:
     return True
 
 
-def _parameters(est) -> list[str]:
-    return [f"| {k} | {v:.6g} |" for k, v in est.parameters_.items()]
+def _parameter_lines(est, u, z) -> list[str]:
+    """Fitted parameters with Gauss-Newton standard errors and the identifiability verdict."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnidentifiableWarning)
+        report = identifiability(est, u, z, include_omega=False)
+    errors = report.standard_errors
+    lines = ["| augmented physics | value | standard error |", "|---|---|---|"]
+    lines += [
+        f"| {k} | {v:.6g} | {errors.get(k, float('nan')):.3g} |"
+        + (" (fixed)" if est.physics_.parameters[k].fixed else "")
+        for k, v in est.parameters_.items()
+    ]
+    return lines + ["", f"Identifiability (Assumption 1): {report.verdict}.", ""]
 
 
 def _hypothesis_lines(result) -> list[str]:
@@ -84,14 +97,32 @@ def _hypothesis_lines(result) -> list[str]:
     return lines or ["- The correction is empty: δ found nothing the physics misses."]
 
 
+def _candidate_lines(result) -> list[str]:
+    alone = dict(result.single_fits)
+    lines = ["| candidate effect | why | estimation RMSE fitted alone |", "|---|---|---|"]
+    lines += [
+        f"| `{c.effect.name}` | {c.reason} | {alone.get(c.effect.name, float('nan')):.4g} |"
+        for c in result.candidates
+    ]
+    return lines
+
+
 def _selection_lines(result) -> list[str]:
-    lines = ["| model | cross-validated R² (estimation record) |", "|---|---|"]
+    lines = ["| model | cross-validated RMSE (estimation record) |", "|---|---|"]
     lines += [f"| {name} | {score:.4f} |" for name, score in result.selection]
     chosen = [
         f"- `{e.name}`: {e.describe(result.physics.state_names, _names(result))}"
         for e in result.effects
     ]
     return lines + ["", "Effects added:", ""] + (chosen or ["- none improved the CV score"])
+
+
+def _gamma_line(scores: dict, chosen: float) -> str:
+    grid = ", ".join(f"{g:g} → {s:.4f}" for g, s in scores.items())
+    return (
+        f"γ by {len(scores)}-value grid search, cross-validated RMSE on the estimation record: "
+        f"{grid} (chosen γ = {chosen:g})."
+    )
 
 
 def _names(result) -> list[str]:
@@ -119,18 +150,14 @@ def write_report(result, rows, records: dict, directory, *, title: str, notes=()
     lines += _residual_section(result, records, "baseline")
     lines += _residual_section(result, records, "final")
     lines += ["## What the sparse correction says", ""]
-    lines += [
-        f"γ by {len(result.gamma_scores)}-value grid search, CV R² on the estimation "
-        f"record: " + ", ".join(f"{g:g} → {s:.4f}" for g, s in result.gamma_scores.items()),
-        f"(chosen γ = {result.with_delta.gamma:g}).",
-        "",
-    ]
+    lines += [_gamma_line(result.gamma_scores, result.with_delta.gamma), ""]
     lines += _hypothesis_lines(result)
     lines += ["![correction](correction.png)", ""] if has_delta_fig else []
-    lines += ["## Effects tried and added", ""] + _selection_lines(result) + [""]
-    lines += ["## Parameters", "", "| augmented physics | value |", "|---|---|"]
-    lines += _parameters(result.final) + [""]
+    lines += ["## Effects tried and added", ""] + _candidate_lines(result) + [""]
+    lines += _selection_lines(result) + [""]
+    lines += ["## Parameters", ""] + _parameter_lines(result.final, *records["estimation"])
     lines += ["## Remaining correction on the augmented physics", ""]
+    lines += [_gamma_line(result.final_gamma_scores, result.final_with_delta.gamma), ""]
     lines += [
         f"Non-zero δ terms: {int(result.final_with_delta.support_.sum())} (before: "
         f"{int(result.with_delta.support_.sum())}); Σ|Ω| "

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..diagnose import simulation_metrics
 
-__all__ = ["MODEL_LABELS", "score_models"]
+__all__ = ["MODEL_LABELS", "held_out_rmse", "score_models"]
 
 MODEL_LABELS = {
     "baseline": "declared physics",
@@ -21,6 +21,31 @@ MODEL_LABELS = {
     "final": "augmented physics",
     "final_with_delta": "augmented physics + δ",
 }
+
+
+DIVERGED_FACTOR = 10.0
+"""A held-out simulation that is not finite scores this many standard deviations of the
+measured block (ten times worse than predicting its mean)."""
+
+
+def held_out_rmse(init_window: int):
+    """Scorer ``(estimator, u, z) -> -RMSE`` of a held-out block's free-run simulation.
+
+    The block's initial state is estimated from its first ``init_window`` measured samples
+    (``predict(u, z_init=...)``), which are not scored: the ``init_window`` protocol applied
+    to a cross-validation block. A non-finite simulation scores
+    ``-DIVERGED_FACTOR * std(z)``, so one diverging fold ranks a model last without
+    making the mean undefined.
+    """
+
+    def scorer(estimator, u, z) -> float:
+        z = np.asarray(z, float).reshape(len(u), -1)
+        with np.errstate(over="ignore", invalid="ignore"):
+            simulated = estimator.predict(u, z_init=z[:init_window]).reshape(z.shape)
+            rmse = float(np.sqrt(np.mean((simulated - z)[init_window:] ** 2)))
+        return -rmse if np.isfinite(rmse) else -DIVERGED_FACTOR * float(np.std(z))
+
+    return scorer
 
 
 def _protocol_metrics(est, u, z, protocol: str, init_window: int) -> dict:
