@@ -4,9 +4,10 @@ For a fitted model with correction :math:`\delta_i = \sum_j \Omega_{ij}\varphi_j
 equation :math:`i`, each selected term is ranked by its contribution along the simulated
 trajectory, :math:`c_{ij} = \mathrm{RMS}_k(\Omega_{ij}\varphi_j(\hat x_k, u_k))`, and its
 share :math:`c_{ij}^2 / \sum_{j'} c_{ij'}^2`. The variables of the dominant terms, the sign of
-:math:`\delta_i` and the range of a variable where :math:`|\delta_i|` concentrates (found with
-:func:`~sk_offwhite.diagnose.residual_regions` applied to :math:`\delta_i`) make up one
-hypothesis per corrected equation.
+:math:`\sum_k \delta_{i,k} \hat x_{i,k}` (``-1``: the correction drives :math:`x_i` toward
+zero, i.e. removes from a level) and the range of a variable where :math:`|\delta_i|`
+concentrates (found with :func:`~sk_offwhite.diagnose.residual_regions` applied to
+:math:`\delta_i`) make up one hypothesis per corrected equation.
 """
 
 from __future__ import annotations
@@ -97,10 +98,15 @@ def _dominant_variables(terms: list[Term], share: float = 0.9) -> tuple[str, ...
     return tuple(variables)
 
 
-def _sentence(equation, variables, sign, region) -> str:
-    effect = "removes" if sign < 0 else "adds"
+def _verb(sign: int, equation: str, one_signed: bool) -> str:
+    if one_signed:
+        return f"{'removes' if sign < 0 else 'adds'} {equation}"
+    return f"drives {equation} {'toward' if sign < 0 else 'away from'} zero"
+
+
+def _sentence(equation, variables, sign, region, one_signed=True) -> str:
     text = f"The {equation} equation lacks a term in {', '.join(variables) or 'a constant'}"
-    text += f" that {effect} {equation}"
+    text += f" that {_verb(sign, equation, one_signed)}"
     if region is not None:
         name, low, high = region
         if np.isfinite(low) and not np.isfinite(high):
@@ -112,14 +118,19 @@ def _sentence(equation, variables, sign, region) -> str:
     return text + "."
 
 
-def _sign(delta: np.ndarray, signals: dict, region) -> int:
-    """Sign of the correction where it acts (in its region, else weighted by its size)."""
+def _sign(delta: np.ndarray, state: np.ndarray, signals: dict, region) -> int:
+    r"""Sign of :math:`\sum_k \delta_k x_k` (in the region where it acts, if any).
+
+    ``-1``: the correction drives the state toward zero (for a level: removes from it);
+    ``+1``: away from zero.
+    """
+    weight = delta * state
     if region is not None:
         name, low, high = region
         inside = (signals[name] >= low) & (signals[name] <= high)
         if inside.any():
-            return int(np.sign(np.mean(delta[inside])) or 1)
-    return int(np.sign(np.sum(delta * np.abs(delta))) or 1)
+            return int(np.sign(np.sum(weight[inside])) or 1)
+    return int(np.sign(np.sum(weight)) or 1)
 
 
 def form_hypotheses(est, run, u) -> list[Hypothesis]:
@@ -136,9 +147,10 @@ def form_hypotheses(est, run, u) -> list[Hypothesis]:
         regions = residual_regions(delta, {v: signals[v] for v in variables or names}, n_shifts=0)
         best = regions[0] if regions and regions[0].rms_ratio >= 1.25 else None
         region = None if best is None else (best.variable, best.low, best.high)
-        sign = _sign(delta, signals, region)
         equation = est.physics_.state_names[state]
-        sentence = _sentence(equation, variables, sign, region)
+        sign = _sign(delta, run.states[:, state], signals, region)
+        one_signed = bool(np.all(run.states[:, state] >= 0) or np.all(run.states[:, state] <= 0))
+        sentence = _sentence(equation, variables, sign, region, one_signed)
         hypotheses.append(
             Hypothesis(equation, state, variables, sign, region, tuple(ranked[row]), sentence)
         )

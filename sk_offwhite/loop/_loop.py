@@ -159,12 +159,14 @@ def _estimation_rmse(est, u, z) -> float:
 
 
 def _rank_alone(physics, candidates, u, z, settings):
-    """``(estimation RMSE, candidate)`` of each candidate added alone, best first."""
+    """``(estimation RMSE, candidate)`` of each candidate added alone, best first.
+
+    A quick fit ranks them: multiple shooting over ``horizon`` windows only (the whole
+    record when ``horizon`` is ``None``), scored by the free run of the whole record.
+    """
     ranked = []
     for candidate in candidates:
-        est = fit_continued(
-            _estimator(augment(physics, candidate.effect), settings), u, z, settings.horizon
-        )
+        est = _estimator(augment(physics, candidate.effect), settings).fit(u, z)
         ranked.append((_estimation_rmse(est, u, z), candidate))
     return sorted(ranked, key=lambda item: item[0])
 
