@@ -73,8 +73,9 @@ def _parameter_lines(est, u, z) -> list[str]:
     errors = report.standard_errors
     lines = ["| augmented physics | value | standard error |", "|---|---|---|"]
     lines += [
-        f"| {k} | {v:.6g} | {errors.get(k, float('nan')):.3g} |"
-        + (" (fixed)" if est.physics_.parameters[k].fixed else "")
+        f"| {k} | {v:.6g} | "
+        + ("fixed" if est.physics_.parameters[k].fixed else f"{errors.get(k, np.nan):.3g}")
+        + " |"
         for k, v in est.parameters_.items()
     ]
     return lines + ["", f"Identifiability (Assumption 1): {report.verdict}.", ""]
