@@ -94,13 +94,13 @@ def test_last_step_of_a_pipeline(tanks_data):
 
 def test_grid_search_over_gamma_in_parallel(tanks_data):
     u, z, _ = tanks_data
-    u, z = u[:400], z[:400]
+    u, z = u[:300], z[:300]
     est = GreyBoxSparseRegressor(
         tanks_physics(x0=[5.2, 5.2]), library=ps.PolynomialLibrary(degree=1), max_iter=60
     )
-    search = GridSearchCV(est, {"gamma": [1e-3, 1.0]}, cv=KFold(3), n_jobs=2)
+    search = GridSearchCV(est, {"gamma": [1e-3, 1.0]}, cv=KFold(2), n_jobs=2)
     search.fit(u, z, sample_index=np.arange(len(u)))
-    serial = GridSearchCV(est, {"gamma": [1e-3, 1.0]}, cv=KFold(3), n_jobs=1)
+    serial = GridSearchCV(est, {"gamma": [1e-3, 1.0]}, cv=KFold(2), n_jobs=1)
     serial.fit(u, z, sample_index=np.arange(len(u)))
     np.testing.assert_allclose(
         search.cv_results_["mean_test_score"], serial.cv_results_["mean_test_score"], rtol=1e-8

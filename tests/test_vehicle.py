@@ -37,6 +37,7 @@ import pytest
 
 from sk_offwhite import GreyBoxSparseRegressor
 from sk_offwhite.datasets import make_vehicle_lateral
+from sk_offwhite.loop import form_hypotheses
 
 N_SAMPLES = 2000  # T of the paper
 GAMMA_SELECT = 1e-7  # relative to mean(z^2): zeroes the duplicate x4 x6
@@ -149,3 +150,13 @@ def test_delta_brings_theta_closer_to_the_truth(case, request):
     score_with = fitted["with"].score(data.u_val, data.z_val)
     score_without = fitted["without"].score(data.u_val, data.z_val)
     assert score_with > score_without
+
+
+def test_the_hypothesis_names_the_delta_equation_variables_and_sign(noise_free):
+    estimator, data = noise_free["with"], noise_free["data"]
+    hypotheses = form_hypotheses(estimator, estimator.simulate(data.u), data.u)
+    hidden = data.hidden_effect
+    assert len(hypotheses) == 1
+    top = hypotheses[0]
+    assert top.equation_index == hidden["equation"] and top.sign == hidden["sign"]
+    assert set(top.variables) == set(hidden["variables"])
