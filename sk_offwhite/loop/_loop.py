@@ -129,16 +129,24 @@ def _cv_rmse(est, u, z, settings: LoopSettings) -> float:
         cv=KFold(settings.n_folds),
         scoring=held_out_rmse(settings.init_window),
         params={"sample_index": np.arange(len(u))},
+        error_score=-np.inf,
     )
     return float(-np.mean(scores))
 
 
 def _fit_delta(physics, library, u, z, settings, gamma_grid=None):
-    """Physics + δ with γ chosen by CV RMSE, refitted on the whole record."""
+    """Physics + δ with γ chosen by CV RMSE, refitted on the whole record.
+
+    With a single γ there is nothing to choose: it is fitted directly and its CV score is
+    reported as ``nan``.
+    """
     gammas = list(gamma_grid or settings.gammas)
     est = _estimator(
         physics, settings, cv=True, library=library, delta_states=settings.delta_states
     )
+    if len(gammas) == 1:
+        est.set_params(gamma=gammas[0], horizon=settings.horizon)
+        return fit_continued(est, u, z, settings.horizon), {gammas[0]: np.nan}
     search = GridSearchCV(
         est,
         {"gamma": gammas},
@@ -166,7 +174,11 @@ def _rank_alone(physics, candidates, u, z, settings):
     """
     ranked = []
     for candidate in candidates:
-        est = _estimator(augment(physics, candidate.effect), settings).fit(u, z)
+        try:
+            est = _estimator(augment(physics, candidate.effect), settings).fit(u, z)
+        except ValueError:  # e.g. the effect's initial guess does not simulate
+            ranked.append((np.inf, candidate))
+            continue
         ranked.append((_estimation_rmse(est, u, z), candidate))
     return sorted(ranked, key=lambda item: item[0])
 
