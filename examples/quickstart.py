@@ -7,10 +7,13 @@ tank sensor saturation that the declared physics does not know about. We fit
 2. the physics plus a sparse correction from a small pysindy dictionary, with the sparsity
    weight ``gamma`` chosen by cross-validation on the estimation record only;
 
-and compare both on a separate validation record. Run: ``python examples/quickstart.py``.
+and compare both on a separate validation record. Run: ``python examples/quickstart.py``
+(``--quick``: a short record, one γ and short fits, to check that the script runs).
 """
 
 from __future__ import annotations
+
+import argparse
 
 import numpy as np
 import pysindy as ps
@@ -25,21 +28,26 @@ def rmse(z, z_sim):
     return float(np.sqrt(np.mean((np.ravel(z) - np.ravel(z_sim)) ** 2)))
 
 
-def main():
-    data = make_cascaded_tanks(n_samples=1024, noise_std=0.02, random_state=0)
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="short run (for CI)")
+    quick = parser.parse_args(argv).quick
+    n_samples, gammas, max_iter = (300, [1e-3], 40) if quick else (1024, [1e-4, 1e-3, 1e-2], 300)
+    horizon = 64 if quick else 256
+    data = make_cascaded_tanks(n_samples=n_samples, noise_std=0.02, random_state=0)
     physics = cascaded_tanks_physics(
         fixed={"k4": data.true_parameters["k4"]}, x0=[data.z[0, 0]] * 2
     )
     print(data.hidden_effect["description"] if data.hidden_effect else "no hidden effect")
 
-    plain = GreyBoxSparseRegressor(physics, max_iter=300).fit(data.u, data.z)
+    plain = GreyBoxSparseRegressor(physics, max_iter=max_iter).fit(data.u, data.z)
     print("\nphysics only:", {k: round(v, 4) for k, v in plain.parameters_.items()})
 
     library = ps.PolynomialLibrary(degree=2, include_bias=False)
     model = GreyBoxSparseRegressor(
-        physics, library=library, delta_states=[0], horizon=256, max_iter=300
+        physics, library=library, delta_states=[0], horizon=horizon, max_iter=max_iter
     )
-    search = GridSearchCV(model, {"gamma": [1e-4, 1e-3, 1e-2]}, cv=KFold(3))
+    search = GridSearchCV(model, {"gamma": gammas}, cv=KFold(3))
     search.fit(data.u, data.z, sample_index=np.arange(len(data.u)))
     best = search.best_estimator_
     print(f"\nwith a sparse correction (gamma={search.best_params_['gamma']:g} by 3-fold CV):")

@@ -15,7 +15,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = {
-    "quickstart.py": [],
+    "quickstart.py": ["--quick"],
     "cascaded_tanks_loop.py": "--quick --out {tmp}".split(),
     "vehicle_montecarlo.py": (
         "--runs 1 --noise-runs 1 --noise-levels 1e-3 --n-samples 300 --max-iter 100 --out {tmp}"
@@ -26,9 +26,6 @@ NOT_RUN = {
     "cascaded_tanks_study.py": "exploration of hand-built effects (about 4 minutes, no quick mode)",
 }
 SLOW = {
-    "quickstart.py": "about 4 min: 1024 samples and a 3 x 3 CV grid, no quick mode",
-    "cascaded_tanks_loop.py": "about 75 s with --quick on 2 idle cores (the loop is tested "
-    "on the synthetic systems in test_loop*.py)",
     "vehicle_montecarlo.py": "about 4.5 min even with one run of 300 samples",
 }
 RUN_ALL = os.environ.get("SK_OFFWHITE_EXAMPLES") == "all"
