@@ -19,12 +19,9 @@ import time
 
 import jax
 import pysindy as ps
+from bench_scaling import value_and_grad_problem  # same folder: run as a script
 
 from sk_offwhite import GreyBoxSparseRegressor, RidgeBasis
-from sk_offwhite._layout import Layout
-from sk_offwhite._optim import free_residuals
-from sk_offwhite._problem import bound_blocks, free_blocks, initial_blocks, make_problem
-from sk_offwhite._segments import make_segments
 from sk_offwhite.datasets import cascaded_tanks_physics, make_cascaded_tanks
 
 N_SAMPLES = 1024
@@ -36,29 +33,14 @@ def twenty_feature_library():
 
 
 def tanks_problem(library, horizon):
-    """The cost of the tanks fit as a jitted value-and-gradient of the free variables."""
+    """The cost of the tanks fit as a jitted value-and-gradient of the free variables
+    (built by :func:`bench_scaling.value_and_grad_problem`); call under ``enable_x64``."""
     data = make_cascaded_tanks(
         n_samples=N_SAMPLES, overflow=False, saturation=False, noise_std=0.0, random_state=0
     )
     physics = cascaded_tanks_physics(fixed={"k4": data.true_parameters["k4"]})
-    est = GreyBoxSparseRegressor(physics, library=library, horizon=horizon)
-    with jax.enable_x64(True):
-        basis, model = est._compile(physics)
-        records = [(data.u, data.z)]
-        segments = make_segments(records, horizon)
-        blocks = initial_blocks(physics, basis, model, records, segments, horizon)
-        free = free_blocks(physics, basis, model, segments)
-        layout = Layout.from_arrays(blocks)
-        weights = (0.1, 0.0, 0.0, 10.0, 1000.0)
-        problem, free0 = make_problem(
-            layout, blocks, free, bound_blocks(physics, blocks), segments, weights
-        )
-
-        def cost(f):
-            r = free_residuals(f, problem, model, layout)
-            return r @ r
-
-        return jax.jit(jax.value_and_grad(cost)), free0, data
+    value_and_grad, free0 = value_and_grad_problem(data.u, data.z, physics, library, horizon)
+    return value_and_grad, free0, data
 
 
 def time_value_and_grad(library, horizon, repeats):

@@ -35,39 +35,26 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from sklearn.exceptions import ConvergenceWarning  # noqa: E402
 
-from sk_offwhite import GreyBoxSparseRegressor, PhysicsModel  # noqa: E402
+from sk_offwhite import GreyBoxSparseRegressor  # noqa: E402
 from sk_offwhite.certify import (  # noqa: E402
     UnidentifiableWarning,
     identifiability,
     parameter_error_bound,
 )
-from sk_offwhite.datasets import make_vehicle_lateral  # noqa: E402
+from sk_offwhite.datasets import (  # noqa: E402
+    make_vehicle_lateral,
+    vehicle_physics_known_registers,
+)
 
 GAMMA_SELECT, GAMMA_REFIT, PAPER_GAMMA = 1e-7, 1e-11, 1e-3
 PAPER = {"runs_fig1": 7500, "runs_per_noise_level_fig3": 5000, "n_samples": 2000}
-
-
-def vehicle_physics(data) -> PhysicsModel:
-    """The declared physics with the measured-input registers of ``x0`` fixed."""
-    physics = data.physics
-    return PhysicsModel(
-        physics.step,
-        physics.output,
-        physics.parameters,
-        n_states=6,
-        n_inputs=2,
-        x0=np.r_[data.z[0, 0], data.z[0, 0], data.true_x0[2:]],
-        x0_fixed=[False, False, True, True, True, True],
-        state_names=physics.state_names,
-        input_names=physics.input_names,
-    )
 
 
 def fit_with_delta(data, max_iter: int) -> GreyBoxSparseRegressor:
     """Physics + dictionary on the yaw equation, gamma continuation relative to mean(z^2)."""
     scale = float(np.mean(data.z**2))
     estimator = GreyBoxSparseRegressor(
-        vehicle_physics(data),
+        vehicle_physics_known_registers(data),
         data.suggested_library,
         gamma=GAMMA_SELECT * scale,
         delta_states=[0],
@@ -77,9 +64,9 @@ def fit_with_delta(data, max_iter: int) -> GreyBoxSparseRegressor:
 
 
 def fit_physics_only(data, max_iter: int) -> GreyBoxSparseRegressor:
-    return GreyBoxSparseRegressor(vehicle_physics(data), None, max_iter=max_iter).fit(
-        data.u, data.z
-    )
+    return GreyBoxSparseRegressor(
+        vehicle_physics_known_registers(data), None, max_iter=max_iter
+    ).fit(data.u, data.z)
 
 
 def true_theta(data) -> np.ndarray:
@@ -155,7 +142,7 @@ def paper_gamma_check(args) -> dict:
     """One fit with the paper's gamma = 0.001 (unscaled) on seed 0, for the record."""
     data = make_vehicle_lateral(args.n_samples, noise_bound=args.noise_bound, random_state=0)
     estimator = GreyBoxSparseRegressor(
-        vehicle_physics(data),
+        vehicle_physics_known_registers(data),
         data.suggested_library,
         gamma=PAPER_GAMMA,
         delta_states=[0],

@@ -24,7 +24,12 @@ from sk_offwhite.certify import (
     induced_norm,
     parameter_error_bound,
 )
-from sk_offwhite.datasets import cascaded_tanks_physics, make_cascaded_tanks, make_vehicle_lateral
+from sk_offwhite.datasets import (
+    cascaded_tanks_physics,
+    make_cascaded_tanks,
+    make_vehicle_lateral,
+    vehicle_physics_known_registers,
+)
 
 TANKS_NAMES = ("k1", "k2", "k3", "k4")
 SCALING_DIRECTION = {"k1": 0.5, "k2": -0.5, "k4": 1.0, "x1(0)": 1.0}
@@ -166,30 +171,9 @@ VEHICLE_SAMPLES = 300
 VEHICLE_NOISE = 2e-4
 
 
-def vehicle_physics(data) -> PhysicsModel:
-    """The generator's physics with the measured-input registers ``x3..x6`` of ``x0`` known.
-
-    ``x3..x6`` hold the measured steering and inverse speed, so their initial values are
-    measurements, not unknowns (fitted, they are nearly unidentifiable: they act on one
-    or two samples only).
-    """
-    physics = data.physics
-    return PhysicsModel(
-        physics.step,
-        physics.output,
-        physics.parameters,
-        n_states=6,
-        n_inputs=2,
-        x0=np.r_[data.z[0, 0], data.z[0, 0], data.true_x0[2:]],
-        x0_fixed=[False, False, True, True, True, True],
-        state_names=physics.state_names,
-        input_names=physics.input_names,
-    )
-
-
 def _vehicle_fits(data):
     """Physics + 12-term dictionary (gamma continuation as tests/test_vehicle.py), physics only."""
-    physics, scale = vehicle_physics(data), float(np.mean(data.z**2))
+    physics, scale = vehicle_physics_known_registers(data), float(np.mean(data.z**2))
     with_delta = GreyBoxSparseRegressor(
         physics, data.suggested_library, gamma=1e-7 * scale, delta_states=[0], max_iter=500
     ).fit(data.u, data.z)

@@ -19,6 +19,7 @@ from sk_offwhite.datasets._synthetic import (
     make_vehicle_lateral,
     vehicle_dictionary_library,
 )
+from sk_offwhite.datasets._vehicle import vehicle_physics_known_registers
 
 __all__ = [
     "cascaded_tanks_physics",
@@ -30,4 +31,5 @@ __all__ = [
     "make_vehicle_lateral",
     "safe_sqrt",
     "vehicle_dictionary_library",
+    "vehicle_physics_known_registers",
 ]

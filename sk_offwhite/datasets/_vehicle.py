@@ -369,3 +369,33 @@ def _warn_if_diverged(*trajectories) -> None:
             RuntimeWarning,
             stacklevel=3,
         )
+
+
+def vehicle_physics_known_registers(data) -> PhysicsModel:
+    """The generator's physics with the measured-input registers ``x3..x6`` of ``x0`` known.
+
+    ``x3..x6`` hold the measured steering and inverse speed, so their initial values are
+    measurements, not unknowns (fitted, they are nearly unidentifiable: they act on one or
+    two samples only). ``x1, x2`` start from the first measured output and are estimated.
+
+    Parameters
+    ----------
+    data : sklearn.utils.Bunch
+        Output of :func:`make_vehicle_lateral`.
+
+    Returns
+    -------
+    PhysicsModel
+    """
+    physics = data.physics
+    return PhysicsModel(
+        physics.step,
+        physics.output,
+        physics.parameters,
+        n_states=6,
+        n_inputs=2,
+        x0=np.r_[data.z[0, 0], data.z[0, 0], data.true_x0[2:]],
+        x0_fixed=[False, False, True, True, True, True],
+        state_names=physics.state_names,
+        input_names=physics.input_names,
+    )
