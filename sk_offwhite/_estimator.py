@@ -29,7 +29,14 @@ from ._problem import (
 )
 from ._rollout import free_run
 from ._segments import split_at_gaps
-from ._validation import as_records, check_inputs, check_pair, check_physics, is_experiment_list
+from ._validation import (
+    as_records,
+    check_input_width,
+    check_inputs,
+    check_pair,
+    check_physics,
+    is_experiment_list,
+)
 
 __all__ = ["GreyBoxSparseRegressor"]
 
@@ -303,11 +310,8 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     def _check_widths(self, n_inputs: int, reset: bool) -> None:
         if reset:
             self.n_features_in_ = n_inputs
-        elif n_inputs != self.n_features_in_:
-            raise ValueError(
-                f"u has {n_inputs} features, but {type(self).__name__} is expecting "
-                f"{self.n_features_in_} features as input."
-            )
+        else:
+            check_input_width(self, n_inputs)
 
     def _resolved_physics(self, n_inputs: int, n_outputs: int) -> PhysicsModel:
         if self.physics is None:

@@ -39,6 +39,15 @@ def check_inputs(u) -> np.ndarray:
     return check_array(u, dtype=np.float64, ensure_all_finite=True, input_name="u")
 
 
+def check_input_width(estimator, n_inputs: int) -> None:
+    """Raise if ``u`` has another number of columns than the fitted ``n_features_in_``."""
+    if n_inputs != estimator.n_features_in_:
+        raise ValueError(
+            f"u has {n_inputs} features, but {type(estimator).__name__} is expecting "
+            f"{estimator.n_features_in_} features as input."
+        )
+
+
 def check_pair(u, z) -> tuple[np.ndarray, np.ndarray]:
     """Validated ``u`` and ``z`` (1-D or 2-D) with one row each per sample."""
     if z is None:

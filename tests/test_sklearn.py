@@ -14,10 +14,12 @@ from sklearn.preprocessing import FunctionTransformer
 from sklearn.utils.estimator_checks import parametrize_with_checks
 
 from sk_offwhite import GreyBoxSparseRegressor, expected_failed_checks
+from sk_offwhite.baselines import DelaySINDyRegressor
 
 
 @parametrize_with_checks(
-    [GreyBoxSparseRegressor(max_iter=50)], expected_failed_checks=expected_failed_checks
+    [GreyBoxSparseRegressor(max_iter=50), DelaySINDyRegressor()],
+    expected_failed_checks=expected_failed_checks,
 )
 def test_sklearn_compatible_estimator(estimator, check):
     check(estimator)

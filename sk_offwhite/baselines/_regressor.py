@@ -21,7 +21,7 @@ from sklearn.utils._param_validation import Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted
 
 from .._segments import split_at_gaps
-from .._validation import check_inputs, check_pair
+from .._validation import check_input_width, check_inputs, check_pair
 from ._embedding import Embedding, embed_record, history_length, variable_names
 from ._simulate import FreeRun, output_box, simulate_free_run
 
@@ -104,6 +104,8 @@ class DelaySINDyRegressor(RegressorMixin, BaseEstimator):
         Lags and square roots of the fitted model.
     n_features_in_, n_outputs_ : int
         Numbers of inputs and outputs.
+    n_iter_ : int
+        Thresholding (STLSQ) or relaxation (SR3) iterations pysindy ran, at most ``max_iter``.
     """
 
     _parameter_constraints: dict = {
@@ -147,14 +149,21 @@ class DelaySINDyRegressor(RegressorMixin, BaseEstimator):
         self.clip_margin = clip_margin
         self.init_window = init_window
 
+    def __sklearn_tags__(self):
+        tags = super().__sklearn_tags__()
+        tags.target_tags.multi_output = True
+        return tags
+
     def _embedded(self, records):
         embedding = self.embedding_
         need = history_length(embedding) + 1
         usable = [(u, z) for u, z in records if u.shape[0] > need]
         if not usable:
+            longest = max(u.shape[0] for u, _ in records)
             raise ValueError(
                 f"every record is shorter than the {need + 1} samples the lags need "
-                f"(n_output_lags={self.n_output_lags}, n_input_lags={self.n_input_lags})."
+                f"(n_output_lags={self.n_output_lags}, n_input_lags={self.n_input_lags}); "
+                f"the longest has n_samples={longest}."
             )
         return [embed_record(u, z, embedding) for u, z in usable], usable
 
@@ -206,6 +215,7 @@ class DelaySINDyRegressor(RegressorMixin, BaseEstimator):
                 feature_names=names,
             )
         self.coef_ = np.asarray(model.optimizer.coef_, float)
+        self.n_iter_ = len(model.optimizer.history_) - 1  # history_[0] is the least squares
         self.support_ = self.coef_ != 0
         self.powers_ = np.asarray(model.feature_library.powers_)
         self.feature_names_ = list(model.feature_library.get_feature_names(names))
@@ -232,8 +242,7 @@ class DelaySINDyRegressor(RegressorMixin, BaseEstimator):
         """
         check_is_fitted(self)
         u = check_inputs(u)
-        if u.shape[1] != self.n_features_in_:
-            raise ValueError(f"u has {u.shape[1]} columns, expected {self.n_features_in_}.")
+        check_input_width(self, u.shape[1])
         history = self._history(z_init)
         args = (self.embedding_, self.coef_, self.powers_, self.output_box_)
         return simulate_free_run(u, history, *args)
