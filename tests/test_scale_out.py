@@ -1,4 +1,8 @@
-"""GridSearchCV of the estimator on a dask.distributed cluster matches the local result."""
+"""GridSearchCV of the estimator through joblib on Dask and Ray matches the local result.
+
+The Dask test runs in CI (the ``dask`` extra); the Ray test runs where the ``ray`` extra is
+installed and is skipped otherwise.
+"""
 
 import numpy as np
 import pytest
@@ -7,7 +11,6 @@ from sklearn.model_selection import GridSearchCV, KFold
 from sk_offwhite import GreyBoxSparseRegressor
 from sk_offwhite.datasets import cascaded_tanks_physics, make_cascaded_tanks
 
-distributed = pytest.importorskip("dask.distributed")
 joblib = pytest.importorskip("joblib")
 
 GAMMAS = [1e-4, 1e-2]
@@ -27,8 +30,16 @@ def _fit(search, u, z):
     return search.fit(u, z, sample_index=np.arange(len(u)))
 
 
+def _assert_same_search(remote, local):
+    assert remote.best_params_ == local.best_params_
+    np.testing.assert_allclose(
+        remote.cv_results_["mean_test_score"], local.cv_results_["mean_test_score"], rtol=1e-8
+    )
+
+
 @pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
 def test_grid_search_on_local_dask_cluster_matches_local_run():
+    distributed = pytest.importorskip("dask.distributed")
     local = _fit(*_search())
     cluster = distributed.LocalCluster(
         n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
@@ -40,7 +51,23 @@ def test_grid_search_on_local_dask_cluster_matches_local_run():
             remote = _fit(search, u, z)
         workers = client.scheduler_info()["workers"]
     assert len(workers) == 2
-    assert remote.best_params_ == local.best_params_
-    np.testing.assert_allclose(
-        remote.cv_results_["mean_test_score"], local.cv_results_["mean_test_score"], rtol=1e-8
-    )
+    _assert_same_search(remote, local)
+
+
+@pytest.mark.filterwarnings("ignore::sklearn.exceptions.ConvergenceWarning")
+@pytest.mark.filterwarnings("ignore::DeprecationWarning")
+def test_grid_search_on_local_ray_matches_local_run():
+    ray = pytest.importorskip("ray")
+    ray_joblib = pytest.importorskip("ray.util.joblib")
+    local = _fit(*_search())
+    ray.init(num_cpus=2, include_dashboard=False)
+    try:
+        ray_joblib.register_ray()
+        search, u, z = _search()
+        with joblib.parallel_backend("ray"):
+            remote = _fit(search, u, z)
+        n_cpus = ray.cluster_resources()["CPU"]
+    finally:
+        ray.shutdown()
+    assert n_cpus == 2
+    _assert_same_search(remote, local)
