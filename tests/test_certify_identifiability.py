@@ -31,9 +31,6 @@ from sk_offwhite.datasets import (
     vehicle_physics_known_registers,
 )
 
-# one worker runs the whole module, so its module-scoped fits are computed once
-pytestmark = pytest.mark.xdist_group("test_certify_identifiability")
-
 TANKS_NAMES = ("k1", "k2", "k3", "k4")
 SCALING_DIRECTION = {"k1": 0.5, "k2": -0.5, "k4": 1.0, "x1(0)": 1.0}
 

@@ -24,9 +24,6 @@ from sk_offwhite.certify import (
 )
 from sk_offwhite.datasets import make_vehicle_lateral
 
-# one worker runs the whole module, so its module-scoped fits are computed once
-pytestmark = pytest.mark.xdist_group("test_certify_sparsity")
-
 THETA = np.array([1.0, -2.0, 0.5])
 TRUE_SUPPORT = [2, 7]
 

@@ -17,9 +17,6 @@ from sk_offwhite.loop import (
 )
 from sk_offwhite.loop._hypotheses import feature_variables
 
-# one worker runs the whole module, so its module-scoped fits are computed once
-pytestmark = pytest.mark.xdist_group("test_loop")
-
 
 @pytest.fixture(scope="module")
 def leaky():

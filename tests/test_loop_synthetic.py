@@ -17,9 +17,6 @@ from sk_offwhite.datasets import (
 )
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 
-# one worker runs the whole module, so its module-scoped fits are computed once
-pytestmark = pytest.mark.xdist_group("test_loop_synthetic")
-
 SETTINGS = LoopSettings(gammas=(1e-3,), n_folds=2, max_iter=100, max_effects=1)
 
 

@@ -39,9 +39,6 @@ from sk_offwhite import GreyBoxSparseRegressor
 from sk_offwhite.datasets import make_vehicle_lateral
 from sk_offwhite.loop import form_hypotheses
 
-# one worker runs the whole module, so its module-scoped fits are computed once
-pytestmark = pytest.mark.xdist_group("test_vehicle")
-
 N_SAMPLES = 2000  # T of the paper
 GAMMA_SELECT = 1e-7  # relative to mean(z^2): zeroes the duplicate x4 x6
 GAMMA_REFIT = 1e-11  # relative to mean(z^2): leaves the Delta coefficients unshrunk
