@@ -71,6 +71,23 @@ def test_certificate_holds_on_the_relaxation_support(linear_case):
     assert "yes" in cert.summary()
 
 
+def test_unit_norm_columns_make_relaxation_and_certificate_independent_of_units(linear_case):
+    xi, phi, y, mu = _args(linear_case)
+    units = np.random.default_rng(1).uniform(0.1, 10.0, 10)
+    units[2] = 1e-3  # a true term with a tiny regressor and a large coefficient
+    reference = sparse_relaxation(xi, phi, y, mu, normalize_columns=True)
+    rescaled = sparse_relaxation(xi, phi * units, y, mu, normalize_columns=True)
+    assert rescaled.solved and rescaled.normalize_columns
+    np.testing.assert_array_equal(np.flatnonzero(rescaled.support), TRUE_SUPPORT)
+    np.testing.assert_allclose(rescaled.omega * units, reference.omega, rtol=1e-5, atol=1e-8)
+    assert "sum ||phi_j|| |omega_j|" in rescaled.summary()
+    cert_reference = certify_sparsity(xi, phi, y, mu, reference.omega, normalize_columns=True)
+    cert = certify_sparsity(xi, phi * units, y, mu, rescaled.omega, normalize_columns=True)
+    assert cert.certified is True and cert_reference.certified is True
+    np.testing.assert_allclose(cert.threshold, cert_reference.threshold, rtol=1e-4)
+    np.testing.assert_allclose(cert.column_scales, np.linalg.norm(phi * units, axis=0))
+
+
 @pytest.mark.parametrize("extra", [[4], [4, 5]])
 def test_spurious_terms_are_not_certified(linear_case, extra):
     omega_hat = _least_squares_on(linear_case, TRUE_SUPPORT + extra)

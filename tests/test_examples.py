@@ -18,7 +18,7 @@ EXAMPLES = {
     "vehicle_montecarlo.py": (
         "--runs 1 --noise-runs 1 --noise-levels 1e-3 --n-samples 300 --max-iter 100 --out {tmp}"
     ).split(),
-    "vehicle_certificates.py": "--runs 1 --n-samples 300 --out {tmp}".split(),
+    "vehicle_certificates.py": "--runs 1 --n-samples 300 --normalize-columns --out {tmp}".split(),
 }
 NOT_RUN = {
     "cascaded_tanks_study.py": "exploration of hand-built effects (about 4 minutes, no quick mode)",

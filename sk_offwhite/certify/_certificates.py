@@ -50,13 +50,20 @@ left; larger supports only lower it). It is exact by enumeration when
 :math:`\lambda_{\min}(Q^\top Q)` and the Gershgorin bound
 :math:`\min_i (G_{ii} - \text{sum of the } k-1 \text{ largest } |G_{ij}|)`, which keeps the
 certificate valid but conservative; the result says which.
+
+**Unit-norm columns** (``normalize_columns=True``). The test runs on
+:math:`\Phi D^{-1}` with :math:`D = \mathrm{diag}(\|\varphi_j\|_2)` and
+:math:`\omega' = D\omega`. Supports, and hence maximal sparsity, are the same for both;
+the :math:`\ell_1` objective of (11), :math:`\eta`, :math:`\tau` and :math:`\sigma^2_{2M}`
+are those of the rescaled problem, where no term is cheap only because its regressor is
+large.
 """
 
 from __future__ import annotations
 
 import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import cvxpy as cp
 import numpy as np
@@ -66,6 +73,7 @@ from ._relaxation import (
     feasible_region,
     linear_problem,
     solve_status,
+    unit_norm_problem,
 )
 
 __all__ = [
@@ -253,6 +261,10 @@ class SparsityCertificate:
         Dictionary columns in the span of :math:`\Phi_\theta` (excluded, see module notes).
     mu : float
     feature_names : tuple of str
+    column_scales : ndarray or None
+        :math:`d_j = \|\varphi_j\|_2` when the test ran on unit-norm columns; then
+        ``omega_hat``, ``omega_v``, ``eta``, ``threshold``, ``margin`` and
+        ``theorem2_bound`` are in the units of :math:`\omega' = D\omega`.
     """
 
     certified: bool | None
@@ -272,6 +284,7 @@ class SparsityCertificate:
     confounded: np.ndarray
     mu: float
     feature_names: tuple[str, ...]
+    column_scales: np.ndarray | None = field(default=None)
 
     @property
     def verdict(self) -> str:
@@ -331,9 +344,15 @@ def certify_problem(
     *,
     max_subsets: int = MAX_SUBSETS,
     active_rtol: float = 1e-3,
+    normalize_columns: bool = False,
 ) -> SparsityCertificate:
     """:func:`certify_sparsity` on an already validated :class:`LinearProblem`."""
     omega_hat = _check_omega_hat(omega_hat, problem.n_features)
+    if normalize_columns:
+        scaled, scales = unit_norm_problem(problem)
+        options = dict(max_subsets=max_subsets, active_rtol=active_rtol)
+        certificate = certify_problem(scaled, omega_hat * scales, **options)
+        return replace(certificate, column_scales=scales)
     support = omega_hat != 0
     eta = float(np.min(np.abs(omega_hat[support])))
     geometry = _geometry(problem, int(support.sum()), max_subsets)
@@ -373,6 +392,7 @@ def certify_sparsity(
     *,
     max_subsets: int = MAX_SUBSETS,
     active_rtol: float = 1e-3,
+    normalize_columns: bool = False,
     theta_names=None,
     feature_names=None,
 ) -> SparsityCertificate:
@@ -402,6 +422,10 @@ def certify_sparsity(
         \mu(1 - \text{active\_rtol})` (interior-point solutions meet complementarity only
         approximately; about 2e-4 was seen on a noise-free vehicle fit). The same tolerance
         is allowed on the feasibility of ``omega_hat``.
+    normalize_columns : bool, default=False
+        Run the test on the dictionary rescaled to unit-norm columns (see the module
+        notes); use it with a ``omega_hat`` from ``sparse_relaxation(...,
+        normalize_columns=True)``. ``omega_hat`` is given in the original units.
     theta_names, feature_names : sequence of str, optional
         Names for the summary.
 
@@ -419,4 +443,5 @@ def certify_sparsity(
     problem = linear_problem(
         phi_theta, phi, y, mu, theta_names=theta_names, feature_names=feature_names
     )
-    return certify_problem(problem, omega_hat, max_subsets=max_subsets, active_rtol=active_rtol)
+    options = dict(max_subsets=max_subsets, active_rtol=active_rtol)
+    return certify_problem(problem, omega_hat, normalize_columns=normalize_columns, **options)

@@ -214,7 +214,14 @@ def _linearisation(estimator, u, z, linearisation) -> Linearisation:
 
 
 def multistep_relaxation(
-    estimator, u, z, mu: float, *, support_tol: float = 1e-6, linearisation=None
+    estimator,
+    u,
+    z,
+    mu: float,
+    *,
+    support_tol: float = 1e-6,
+    normalize_columns: bool = False,
+    linearisation=None,
 ) -> SparseRelaxation:
     r"""The multi-step relaxation (15), solved on the local linearisation of the fit.
 
@@ -237,6 +244,9 @@ def multistep_relaxation(
         :math:`|\eta_k| \le b` use :math:`\mu = b\sqrt{T n_z}`.
     support_tol : float, default=1e-6
         See :func:`~sk_offwhite.certify.sparse_relaxation`.
+    normalize_columns : bool, default=False
+        Weigh each :math:`|\omega_j|` by the norm of its column of :math:`J_\omega` (see
+        :func:`~sk_offwhite.certify.sparse_relaxation`).
     linearisation : Linearisation, optional
         Reuse a linearisation computed before (``u`` and ``z`` are then ignored).
 
@@ -245,7 +255,8 @@ def multistep_relaxation(
     SparseRelaxation
     """
     lin = _linearisation(estimator, u, z, linearisation)
-    return solve_relaxation(lin.problem(mu), support_tol=support_tol)
+    options = dict(support_tol=support_tol, normalize_columns=normalize_columns)
+    return solve_relaxation(lin.problem(mu), **options)
 
 
 def certify_estimator(
@@ -272,7 +283,8 @@ def certify_estimator(
     linearisation : Linearisation, optional
         Reuse a linearisation computed before.
     **options
-        ``max_subsets``, ``active_rtol`` of :func:`~sk_offwhite.certify.certify_sparsity`.
+        ``max_subsets``, ``active_rtol``, ``normalize_columns`` of
+        :func:`~sk_offwhite.certify.certify_sparsity`.
 
     Returns
     -------

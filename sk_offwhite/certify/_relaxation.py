@@ -29,7 +29,7 @@ unit norm inside the solver (the objective keeps the original :math:`\|\omega\|_
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import cvxpy as cp
 import numpy as np
@@ -148,6 +148,19 @@ def column_scales(matrix: np.ndarray) -> np.ndarray:
     return np.where(norms > 0, norms, 1.0)
 
 
+def unit_norm_problem(problem: LinearProblem) -> tuple[LinearProblem, np.ndarray]:
+    r"""The problem in unit-norm dictionary columns, and the column norms :math:`d`.
+
+    With :math:`D = \mathrm{diag}(d)`, :math:`d_j = \|\varphi_j\|_2` and
+    :math:`\omega' = D\omega`, :math:`\Phi\omega = (\Phi D^{-1})\omega'`: the data model
+    and every support are unchanged, and :math:`\|\omega'\|_1 = \sum_j
+    \|\varphi_j\|_2\, |\omega_j|` weighs each term by the size of its regressor, so
+    the relaxation no longer depends on the units of the dictionary.
+    """
+    scales = column_scales(problem.phi)
+    return replace(problem, phi=problem.phi / scales), scales
+
+
 def compress(matrix: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     r"""``(R, c, r_perp)`` with :math:`\|y - Ax\|_2^2 = \|c - Rx\|_2^2 + r_\perp^2` for all x.
 
@@ -227,6 +240,9 @@ class SparseRelaxation:
         :math:`\|y - \Phi_\theta\hat\theta - \Phi\hat\omega\|_2`.
     mu : float
     theta_names, feature_names : tuple of str
+    normalize_columns : bool
+        Whether the objective was :math:`\sum_j \|\varphi_j\|_2 |\omega_j|` (``omega``
+        is in the dictionary's own units either way).
     """
 
     status: str
@@ -237,6 +253,7 @@ class SparseRelaxation:
     mu: float
     theta_names: tuple[str, ...] = field(default=())
     feature_names: tuple[str, ...] = field(default=())
+    normalize_columns: bool = False
 
     @property
     def solved(self) -> bool:
@@ -261,9 +278,11 @@ class SparseRelaxation:
         theta = ", ".join(
             f"{n} = {v:.6g}" for n, v in zip(self.theta_names, self.theta, strict=True)
         )
+        objective = "sum ||phi_j|| |omega_j|" if self.normalize_columns else "||omega||_1"
         return "\n".join(
             [
-                f"Sparse relaxation (10): optimal, |supp| = {int(self.support.sum())}",
+                f"Sparse relaxation (10), min {objective}: optimal, "
+                f"|supp| = {int(self.support.sum())}",
                 f"  support: {terms or '(empty)'}",
                 f"  theta: {theta or '(none)'}",
                 f"  residual norm {self.residual_norm:.6g} <= mu = {self.mu:.6g}",
@@ -284,8 +303,15 @@ def _relaxation_result(problem, status, theta, omega, tol) -> SparseRelaxation:
     return SparseRelaxation(status, theta_hat, omega_hat, support, norm, problem.mu, *names)
 
 
-def solve_relaxation(problem: LinearProblem, *, support_tol: float = 1e-6) -> SparseRelaxation:
+def solve_relaxation(
+    problem: LinearProblem, *, support_tol: float = 1e-6, normalize_columns: bool = False
+) -> SparseRelaxation:
     """:func:`sparse_relaxation` on an already validated :class:`LinearProblem`."""
+    if normalize_columns:
+        scaled, scales = unit_norm_problem(problem)
+        result = solve_relaxation(scaled, support_tol=support_tol)
+        omega = None if result.omega is None else result.omega / scales
+        return replace(result, omega=omega, normalize_columns=True)
     theta, omega, cone = feasible_region(problem)
     prob = cp.Problem(cp.Minimize(cp.norm(omega, 1)), [cone])
     status = solve_status(prob)
@@ -299,6 +325,7 @@ def sparse_relaxation(
     mu: float,
     *,
     support_tol: float = 1e-6,
+    normalize_columns: bool = False,
     theta_names=None,
     feature_names=None,
 ) -> SparseRelaxation:
@@ -323,6 +350,12 @@ def sparse_relaxation(
     support_tol : float, default=1e-6
         An entry is in the support when :math:`|\hat\omega_j|\,\|\varphi_j\|_2` exceeds
         ``support_tol`` times the largest such value (entries below are set to 0).
+    normalize_columns : bool, default=False
+        Minimise :math:`\sum_j \|\varphi_j\|_2\, |\omega_j|` instead of
+        :math:`\|\omega\|_1`: the relaxation (10) on the dictionary rescaled to unit-norm
+        columns (as pysindy's ``normalize_columns``). The plain :math:`\ell_1` norm favours
+        terms with large regressors whatever their role; the weighted one does not depend
+        on the units of the dictionary. ``omega`` is returned in the original units.
     theta_names, feature_names : sequence of str, optional
         Names for the summary.
 
@@ -345,4 +378,4 @@ def sparse_relaxation(
     problem = linear_problem(
         phi_theta, phi, y, mu, theta_names=theta_names, feature_names=feature_names
     )
-    return solve_relaxation(problem, support_tol=support_tol)
+    return solve_relaxation(problem, support_tol=support_tol, normalize_columns=normalize_columns)
