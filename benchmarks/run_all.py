@@ -31,7 +31,7 @@ import pysindy as ps
 import sklearn
 from sklearn.base import clone
 
-from sk_offwhite import GreyBoxSparseRegressor
+from sk_offwhite import GreyBoxSparseRegressor, fit_gamma_path
 from sk_offwhite.baselines import tune_delay_sindy
 from sk_offwhite.datasets import (
     cascaded_tanks_physics,
@@ -192,15 +192,10 @@ def run_direct(case: Case, settings: LoopSettings) -> list[dict]:
     plain.fit(case.u, case.z)
     rows.append(_row(case, "sk_offwhite physics only", plain, time.perf_counter() - start, None))
     est = GreyBoxSparseRegressor(
-        case.physics,
-        case.library,
-        gamma=max(case.gammas),
-        delta_states=case.delta_states,
-        max_iter=5 * settings.max_iter,
+        case.physics, case.library, delta_states=case.delta_states, max_iter=5 * settings.max_iter
     )
     start = time.perf_counter()
-    est.fit(case.u, case.z)
-    est.set_params(gamma=min(case.gammas), warm_start=True).fit(case.u, case.z)
+    fit_gamma_path(est, case.u, case.z, [max(case.gammas), min(case.gammas)])
     note = f"γ {max(case.gammas):.2g} then {min(case.gammas):.2g} (warm), no CV"
     rows.append(_row(case, "sk_offwhite physics + δ", est, time.perf_counter() - start, None, note))
     return rows

@@ -47,7 +47,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from sk_offwhite import GreyBoxSparseRegressor  # noqa: E402
+from sk_offwhite import GreyBoxSparseRegressor, fit_gamma_path  # noqa: E402
 from sk_offwhite.certify import (  # noqa: E402
     certify_estimator,
     estimator_feasible_set,
@@ -64,17 +64,11 @@ def fit(data) -> GreyBoxSparseRegressor:
     """Physics + dictionary on equation 0 with the gamma continuation."""
     scale = float(np.mean(data.z**2))
     est = GreyBoxSparseRegressor(
-        data.physics,
-        data.suggested_library,
-        gamma=GAMMA_SELECT * scale,
-        delta_states=[0],
-        max_iter=1000,
+        data.physics, data.suggested_library, delta_states=[0], max_iter=1000
     )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        est.fit(data.u, data.z)
-        est.set_params(gamma=GAMMA_REFIT * scale, warm_start=True).fit(data.u, data.z)
-    return est
+        return fit_gamma_path(est, data.u, data.z, [GAMMA_SELECT * scale, GAMMA_REFIT * scale])
 
 
 def identifiable_fps(est, lin, mu: float):

@@ -35,7 +35,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from sklearn.exceptions import ConvergenceWarning  # noqa: E402
 
-from sk_offwhite import GreyBoxSparseRegressor  # noqa: E402
+from sk_offwhite import GreyBoxSparseRegressor, fit_gamma_path  # noqa: E402
 from sk_offwhite.certify import (  # noqa: E402
     UnidentifiableWarning,
     identifiability,
@@ -56,11 +56,10 @@ def fit_with_delta(data, max_iter: int) -> GreyBoxSparseRegressor:
     estimator = GreyBoxSparseRegressor(
         vehicle_physics_known_registers(data),
         data.suggested_library,
-        gamma=GAMMA_SELECT * scale,
         delta_states=[0],
         max_iter=max_iter,
-    ).fit(data.u, data.z)
-    return estimator.set_params(gamma=GAMMA_REFIT * scale, warm_start=True).fit(data.u, data.z)
+    )
+    return fit_gamma_path(estimator, data.u, data.z, [GAMMA_SELECT * scale, GAMMA_REFIT * scale])
 
 
 def fit_physics_only(data, max_iter: int) -> GreyBoxSparseRegressor:

@@ -1,6 +1,7 @@
 """sk_offwhite: physics-based multi-step system identification with sparse corrections."""
 
 from ._basis import RidgeBasis, compile_basis
+from ._continuation import fit_gamma_path
 from ._effects import (
     Effect,
     Friction,
@@ -29,5 +30,6 @@ __all__ = [
     "augment",
     "compile_basis",
     "expected_failed_checks",
+    "fit_gamma_path",
 ]
 __version__ = "0.1.0.dev0"

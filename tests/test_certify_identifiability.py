@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from sklearn.exceptions import ConvergenceWarning, NotFittedError
 
-from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel
+from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel, fit_gamma_path
 from sk_offwhite.certify import (
     UnidentifiableWarning,
     identifiability,
@@ -175,9 +175,9 @@ def _vehicle_fits(data):
     """Physics + 12-term dictionary (gamma continuation as tests/test_vehicle.py), physics only."""
     physics, scale = vehicle_physics_known_registers(data), float(np.mean(data.z**2))
     with_delta = GreyBoxSparseRegressor(
-        physics, data.suggested_library, gamma=1e-7 * scale, delta_states=[0], max_iter=500
-    ).fit(data.u, data.z)
-    with_delta.set_params(gamma=1e-11 * scale, warm_start=True).fit(data.u, data.z)
+        physics, data.suggested_library, delta_states=[0], max_iter=500
+    )
+    fit_gamma_path(with_delta, data.u, data.z, [1e-7 * scale, 1e-11 * scale])
     without = GreyBoxSparseRegressor(physics, None, max_iter=500).fit(data.u, data.z)
     return {"with": with_delta, "without": without}
 

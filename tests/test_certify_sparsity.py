@@ -12,7 +12,7 @@ import warnings
 import numpy as np
 import pytest
 
-from sk_offwhite import GreyBoxSparseRegressor
+from sk_offwhite import GreyBoxSparseRegressor, fit_gamma_path
 from sk_offwhite.certify import (
     certify_estimator,
     certify_sparsity,
@@ -189,12 +189,11 @@ def vehicle_fit():
     data = make_vehicle_lateral(n_samples=300, noise_bound=0.0, random_state=0)
     scale = float(np.mean(data.z**2))
     est = GreyBoxSparseRegressor(
-        data.physics, data.suggested_library, gamma=1e-7 * scale, delta_states=[0], max_iter=1000
+        data.physics, data.suggested_library, delta_states=[0], max_iter=1000
     )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        est.fit(data.u, data.z)
-        est.set_params(gamma=1e-11 * scale, warm_start=True).fit(data.u, data.z)
+        fit_gamma_path(est, data.u, data.z, [1e-7 * scale, 1e-11 * scale])
     lin = linearise_estimator(est, data.u, data.z)
     return data, est, lin, 2.0 * np.linalg.norm(lin.residual)
 
