@@ -8,6 +8,7 @@ library functions run in float64 numpy inside pysindy and in ``jax.numpy`` (also
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 
 import jax
 import jax.numpy as jnp
@@ -228,4 +229,67 @@ def _gaussian_noise(stds, noises, process_target: str) -> dict:
         {**gaussian, "std": stds[0], "applied_to": "z"},
         {**gaussian, "std": stds[1], "applied_to": process_target},
         *noises,
+    )
+
+
+@dataclass(frozen=True)
+class _SimpleSystem:
+    """A system with one measured state and one hidden effect on one equation.
+
+    ``physics(values, x0)`` builds the declared physics; the true system adds
+    ``contribution(x, u, **params)`` to equation ``equation``. ``library()`` makes a new
+    suggested library for every dataset.
+    """
+
+    physics: Callable
+    theta: dict
+    guess: dict
+    x0: tuple
+    contribution: Callable
+    params: dict
+    equation: int
+    variables: tuple
+    effect_description: str
+    library: Callable
+    process_target: str
+    descr: str
+    dt: float
+    guess_x0_measured: bool = False
+
+
+def _noise_stds(noise_std, process_noise_std) -> tuple[float, float]:
+    return (
+        _check_scale("noise_std", noise_std),
+        _check_scale("process_noise_std", process_noise_std),
+    )
+
+
+def _simple_dataset(system: _SimpleSystem, rng, n: int, inputs, stds) -> Bunch:
+    """Estimation and validation records of ``system`` (inputs drawn by the caller first).
+
+    The physics returned starts from ``system.guess``, and from the first measured output
+    as initial state when ``guess_x0_measured`` (else from the true ``x0``).
+    """
+    x0, eq = np.asarray(system.x0, dtype=np.float64), system.equation
+    effect = _HiddenEffect(system.contribution, system.params)
+    plain = system.physics(system.theta, system.x0)
+    (est, val), noises = _simple_records(
+        rng, n, plain, system.theta, x0, inputs, effect, stds, (eq,)
+    )
+    u, x, z = est
+    sign = _effect_sign(_HiddenEffect(system.contribution, system.params, eq), x, u, eq)
+    hidden = _hidden_effect(
+        system.contribution, system.params, eq, system.variables, sign, system.effect_description
+    )
+    guess_x0 = (z[0, 0],) if system.guess_x0_measured else system.x0
+    return _bunch(
+        system.physics(system.guess, guess_x0),
+        (est, val),
+        system.theta,
+        (x0, x0),
+        hidden,
+        system.library(),
+        _gaussian_noise(stds, noises, system.process_target),
+        system.descr,
+        sampling_time=system.dt,
     )

@@ -46,13 +46,14 @@ from sk_offwhite.datasets._common import (
     _check_scale,
     _effect_sign,
     _gaussian,
-    _gaussian_noise,
     _hidden_effect,
     _HiddenEffect,
     _multisine,
+    _noise_stds,
     _record_noise,
     _rollout,
-    _simple_records,
+    _simple_dataset,
+    _SimpleSystem,
     _softplus,
     _tanh,
     _TermName,
@@ -342,42 +343,10 @@ def make_friction_oscillator(
         ``u, z, u_val, z_val, x, x_val, physics, true_parameters, true_x0, true_x0_val,
         hidden_effect, suggested_library, noise, sampling_time, DESCR``.
     """
-    n = _check_n_samples(n_samples)
-    stds = (
-        _check_scale("noise_std", noise_std),
-        _check_scale("process_noise_std", process_noise_std),
-    )
+    n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
     rng = check_random_state(random_state)
-    params = {"fc": FRICTION_FC, "eps": FRICTION_EPS, "m": FRICTION_THETA["m"], "dt": FRICTION_DT}
-    plain = _oscillator_physics(FRICTION_THETA, (0.0, 0.0))
     inputs = [2.0 * _multisine(rng, n, 0.05)[:, None] for _ in range(2)]
-    effect = _HiddenEffect(_friction_effect, params)
-    (est, val), noises = _simple_records(
-        rng, n, plain, FRICTION_THETA, np.zeros(2), inputs, effect, stds, (1,)
-    )
-    u, x, _ = est
-    hidden = _hidden_effect(
-        _friction_effect,
-        params,
-        1,
-        ("v",),
-        _effect_sign(_HiddenEffect(_friction_effect, params, 1), x, u, 1),
-        "Coulomb friction -Fc tanh(v / 0.1) opposing the velocity (velocity equation).",
-    )
-    guess = {"m": 1.2, "k": 3.0, "c": 0.6}
-    return _bunch(
-        _oscillator_physics(guess, (0.0, 0.0)),
-        (est, val),
-        FRICTION_THETA,
-        (np.zeros(2), np.zeros(2)),
-        hidden,
-        ps.PolynomialLibrary(degree=2) + ps.CustomLibrary([_tanh_10], [_TermName("tanh(10 {0})")]),
-        _gaussian_noise(stds, noises, "velocity equation"),
-        "Mass-spring-damper m x'' + c x' + k x = u - Fc tanh(x'/eps), m=1, k=4, c=0.4, "
-        "Fc=0.5, eps=0.1, Euler dt=0.05 s, position measured; the physics omits the "
-        "Coulomb friction.\n",
-        sampling_time=FRICTION_DT,
-    )
+    return _simple_dataset(_FRICTION_SYSTEM, rng, n, inputs, stds)
 
 
 def _oscillator_physics(values: dict, x0) -> PhysicsModel:
@@ -394,6 +363,31 @@ def _oscillator_physics(values: dict, x0) -> PhysicsModel:
         input_names=("u",),
         output_names=("x",),
     )
+
+
+def _friction_library():
+    tanh_terms = ps.CustomLibrary([_tanh_10], [_TermName("tanh(10 {0})")])
+    return ps.PolynomialLibrary(degree=2) + tanh_terms
+
+
+_FRICTION_SYSTEM = _SimpleSystem(
+    physics=_oscillator_physics,
+    theta=FRICTION_THETA,
+    guess={"m": 1.2, "k": 3.0, "c": 0.6},
+    x0=(0.0, 0.0),
+    contribution=_friction_effect,
+    params={"fc": FRICTION_FC, "eps": FRICTION_EPS, "m": FRICTION_THETA["m"], "dt": FRICTION_DT},
+    equation=1,
+    variables=("v",),
+    effect_description="Coulomb friction -Fc tanh(v / 0.1) opposing the velocity "
+    "(velocity equation).",
+    library=_friction_library,
+    process_target="velocity equation",
+    descr="Mass-spring-damper m x'' + c x' + k x = u - Fc tanh(x'/eps), m=1, k=4, c=0.4, "
+    "Fc=0.5, eps=0.1, Euler dt=0.05 s, position measured; the physics omits the "
+    "Coulomb friction.\n",
+    dt=FRICTION_DT,
+)
 
 
 # --------------------------------------------------------------------------------------
@@ -428,6 +422,35 @@ def _first_order_physics(rhs, values, x0, dt, names) -> PhysicsModel:
         input_names=names[1:],
         output_names=names[:1],
     )
+
+
+def _motor_physics(values: dict, x0) -> PhysicsModel:
+    return _first_order_physics(motor_rhs, values, x0, ACTUATOR_DT, ("omega", "u"))
+
+
+def _actuator_library():
+    return ps.PolynomialLibrary(degree=3) + ps.CustomLibrary(
+        [_signed_square], [_TermName("{0}|{0}|")]
+    )
+
+
+_ACTUATOR_SYSTEM = _SimpleSystem(
+    physics=_motor_physics,
+    theta=ACTUATOR_THETA,
+    guess={"a": 1.5, "b": 3.0},
+    x0=(0.0,),
+    contribution=_actuator_effect,
+    params={"b": ACTUATOR_THETA["b"], "umax": ACTUATOR_UMAX, "dt": ACTUATOR_DT},
+    equation=0,
+    variables=("u",),
+    effect_description="Actuator saturation: the drive is b umax tanh(u / umax) instead of "
+    "b u, less than linear at large |u|.",
+    library=_actuator_library,
+    process_target="speed equation",
+    descr="First-order motor omega' = -a omega + b umax tanh(u/umax), a=2, b=4, umax=1, "
+    "Euler dt=0.05 s, speed measured; the physics assumes the linear drive b u.\n",
+    dt=ACTUATOR_DT,
+)
 
 
 def make_saturating_actuator(
@@ -475,44 +498,10 @@ def make_saturating_actuator(
         ``u, z, u_val, z_val, x, x_val, physics, true_parameters, true_x0, true_x0_val,
         hidden_effect, suggested_library, noise, sampling_time, DESCR``.
     """
-    n = _check_n_samples(n_samples)
-    stds = (
-        _check_scale("noise_std", noise_std),
-        _check_scale("process_noise_std", process_noise_std),
-    )
+    n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
     rng = check_random_state(random_state)
-    params = {"b": ACTUATOR_THETA["b"], "umax": ACTUATOR_UMAX, "dt": ACTUATOR_DT}
-    names = ("omega", "u")
-    plain = _first_order_physics(motor_rhs, ACTUATOR_THETA, (0.0,), ACTUATOR_DT, names)
     inputs = [0.8 * _multisine(rng, n, 0.03)[:, None] for _ in range(2)]
-    effect = _HiddenEffect(_actuator_effect, params)
-    (est, val), noises = _simple_records(
-        rng, n, plain, ACTUATOR_THETA, np.zeros(1), inputs, effect, stds
-    )
-    u, x, _ = est
-    hidden = _hidden_effect(
-        _actuator_effect,
-        params,
-        0,
-        ("u",),
-        _effect_sign(_HiddenEffect(_actuator_effect, params, 0), x, u, 0),
-        "Actuator saturation: the drive is b umax tanh(u / umax) instead of b u, "
-        "less than linear at large |u|.",
-    )
-    guess = {"a": 1.5, "b": 3.0}
-    return _bunch(
-        _first_order_physics(motor_rhs, guess, (0.0,), ACTUATOR_DT, names),
-        (est, val),
-        ACTUATOR_THETA,
-        (np.zeros(1), np.zeros(1)),
-        hidden,
-        ps.PolynomialLibrary(degree=3)
-        + ps.CustomLibrary([_signed_square], [_TermName("{0}|{0}|")]),
-        _gaussian_noise(stds, noises, "speed equation"),
-        "First-order motor omega' = -a omega + b umax tanh(u/umax), a=2, b=4, umax=1, "
-        "Euler dt=0.05 s, speed measured; the physics assumes the linear drive b u.\n",
-        sampling_time=ACTUATOR_DT,
-    )
+    return _simple_dataset(_ACTUATOR_SYSTEM, rng, n, inputs, stds)
 
 
 # --------------------------------------------------------------------------------------
@@ -531,6 +520,33 @@ def tank_rhs(x, u, theta):
 def _leak_effect(x, u, c, dt):
     """``-dt c x`` on the level equation (numpy)."""
     return -dt * c * x[..., :1]
+
+
+def _tank_physics(values: dict, x0) -> PhysicsModel:
+    return _first_order_physics(tank_rhs, values, x0, LEAKY_DT, ("x", "u"))
+
+
+def _leaky_library():
+    return ps.PolynomialLibrary(degree=2)
+
+
+_LEAKY_SYSTEM = _SimpleSystem(
+    physics=_tank_physics,
+    theta=LEAKY_THETA,
+    guess={"k": 0.4, "b": 0.6},
+    x0=(LEAKY_X0,),
+    contribution=_leak_effect,
+    params={"c": LEAKY_C, "dt": LEAKY_DT},
+    equation=0,
+    variables=("x",),
+    effect_description="Unmodelled leak -c x draining the tank in proportion to its level.",
+    library=_leaky_library,
+    process_target="level equation",
+    descr="Tank x' = -k sqrt(x) + b u - c x, k=0.5, b=0.5, c=0.05, Euler dt=1 s, level "
+    "measured; the physics omits the leak -c x.\n",
+    dt=LEAKY_DT,
+    guess_x0_measured=True,
+)
 
 
 def make_leaky_tank(
@@ -573,38 +589,7 @@ def make_leaky_tank(
         ``u, z, u_val, z_val, x, x_val, physics, true_parameters, true_x0, true_x0_val,
         hidden_effect, suggested_library, noise, sampling_time, DESCR``.
     """
-    n = _check_n_samples(n_samples)
-    stds = (
-        _check_scale("noise_std", noise_std),
-        _check_scale("process_noise_std", process_noise_std),
-    )
+    n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
     rng = check_random_state(random_state)
-    params = {"c": LEAKY_C, "dt": LEAKY_DT}
-    names = ("x", "u")
-    plain = _first_order_physics(tank_rhs, LEAKY_THETA, (LEAKY_X0,), LEAKY_DT, names)
     inputs = [np.clip(2.0 + 0.6 * _multisine(rng, n, 0.02), 0.0, None)[:, None] for _ in range(2)]
-    x0 = np.array([LEAKY_X0])
-    effect = _HiddenEffect(_leak_effect, params)
-    (est, val), noises = _simple_records(rng, n, plain, LEAKY_THETA, x0, inputs, effect, stds)
-    u, x, z = est
-    hidden = _hidden_effect(
-        _leak_effect,
-        params,
-        0,
-        ("x",),
-        _effect_sign(_HiddenEffect(_leak_effect, params, 0), x, u, 0),
-        "Unmodelled leak -c x draining the tank in proportion to its level.",
-    )
-    guess = {"k": 0.4, "b": 0.6}
-    return _bunch(
-        _first_order_physics(tank_rhs, guess, (z[0, 0],), LEAKY_DT, names),
-        (est, val),
-        LEAKY_THETA,
-        (x0, x0),
-        hidden,
-        ps.PolynomialLibrary(degree=2),
-        _gaussian_noise(stds, noises, "level equation"),
-        "Tank x' = -k sqrt(x) + b u - c x, k=0.5, b=0.5, c=0.05, Euler dt=1 s, level "
-        "measured; the physics omits the leak -c x.\n",
-        sampling_time=LEAKY_DT,
-    )
+    return _simple_dataset(_LEAKY_SYSTEM, rng, n, inputs, stds)
