@@ -30,7 +30,8 @@ def main(argv=None):
     parser.add_argument(
         "--quick",
         action="store_true",
-        help="one γ, two folds, short fits: checks the script runs (for CI), not the result",
+        help="one γ, two folds, short fits, three candidates: checks the script runs (for CI), "
+        "not the result",
     )
     args = parser.parse_args(argv)
     data = load_cascaded_tanks()
@@ -40,6 +41,7 @@ def main(argv=None):
         n_folds=2 if args.quick else 3,
         max_iter=40 if args.quick else 300,
         max_effects=1 if args.quick else 3,
+        max_candidates=3 if args.quick else None,
     )
     start = time.perf_counter()
     result = close_the_loop(physics, tanks_library(), data.u_est, data.z_est, settings=settings)

@@ -1,11 +1,24 @@
 """Shared synthetic systems for the tests (noise-free unless stated)."""
 
-import jax
-import jax.numpy as jnp
-import numpy as np
-import pytest
+import os
+import tempfile
 
-from sk_offwhite import Parameter, PhysicsModel
+# Set before JAX starts, for this process and every process it spawns (xdist workers,
+# example scripts, joblib and Dask workers): one XLA thread per process, since the two
+# workers already use both cores, and one compilation cache for the whole run, so a
+# program compiled by one process is loaded, not compiled again, by the others.
+os.environ.setdefault(
+    "XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
+)
+if "JAX_COMPILATION_CACHE_DIR" not in os.environ:
+    os.environ["JAX_COMPILATION_CACHE_DIR"] = tempfile.mkdtemp(prefix="sk_offwhite_jax_")
+
+import jax  # noqa: E402
+import jax.numpy as jnp  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from sk_offwhite import Parameter, PhysicsModel  # noqa: E402
 
 LONGEST_FIRST = (
     "test_examples.py",

@@ -113,3 +113,26 @@ def test_candidates_are_unique_by_name():
     ]
     names = [c.effect.name for c in propose_effects(hyps, [], ("x1", "x2"), ["x2"], states)]
     assert len(names) == len(set(names)) and "overflow_x1_to_x2" in names
+
+
+def test_max_candidates_caps_the_candidates_fitted(monkeypatch):
+    from sk_offwhite.loop import _loop
+
+    fitted = []
+
+    def rank_alone(physics, candidates, u, z, settings):
+        fitted.extend(candidates)
+        return []
+
+    monkeypatch.setattr(_loop, "_rank_alone", rank_alone)
+    monkeypatch.setattr(_loop, "_cv_rmse", lambda *args: 1.0)
+    effects, trail, _ = _loop._select_effects(
+        None, ["first", "second", "third"], None, None, LoopSettings(max_candidates=2), 1.0
+    )
+    assert fitted == ["first", "second"] and effects == ()
+    assert trail == [("declared physics", 1.0)]
+
+
+def test_max_candidates_must_be_positive():
+    with pytest.raises(ValueError, match="max_candidates must be None or >= 1"):
+        LoopSettings(max_candidates=0)

@@ -46,6 +46,9 @@ class LoopSettings:
     is simulated whole, which is what the held-out blocks are scored on). ``min_gain`` is
     the relative reduction of the cross-validated RMSE an effect set must bring;
     ``tolerance`` the relative slack within which a smaller nested set is preferred.
+    ``max_candidates`` caps how many proposed effects are fitted, in the order they are
+    proposed (strongest hypothesis first); ``None`` fits them all. Each candidate costs a
+    fit and a compilation, so a cap is the way to make a quick run quicker.
     """
 
     gammas: tuple[float, ...] = (1e-3, 1e-2, 1e-1, 1.0)
@@ -58,6 +61,11 @@ class LoopSettings:
     tolerance: float = 0.02
     delta_states: tuple[int, ...] | None = None
     init_window: int = 50
+    max_candidates: int | None = None
+
+    def __post_init__(self):
+        if self.max_candidates is not None and self.max_candidates < 1:
+            raise ValueError(f"max_candidates must be None or >= 1, got {self.max_candidates}.")
 
 
 @dataclass
@@ -191,7 +199,7 @@ def _smallest_within(scores: list[float], tolerance: float) -> int:
 
 def _select_effects(physics, candidates, u, z, settings, base_rmse):
     """Nested effect sets in the order of their single-fit gain, chosen by CV RMSE."""
-    ranked = _rank_alone(physics, candidates, u, z, settings)
+    ranked = _rank_alone(physics, candidates[: settings.max_candidates], u, z, settings)
     singles = [(c.effect.name, r) for r, c in ranked]
     useful = [c.effect for r, c in ranked if r < base_rmse][: settings.max_effects]
     trail = [("declared physics", _cv_rmse(_estimator(physics, settings, cv=True), u, z, settings))]

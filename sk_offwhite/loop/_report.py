@@ -98,11 +98,15 @@ def _hypothesis_lines(result) -> list[str]:
     return lines or ["- The correction is empty: δ found nothing the physics misses."]
 
 
+def _alone_cell(alone: dict, name: str) -> str:
+    return f"{alone[name]:.4g}" if name in alone else "not fitted (max_candidates)"
+
+
 def _candidate_lines(result) -> list[str]:
     alone = dict(result.single_fits)
     lines = ["| candidate effect | why | estimation RMSE fitted alone |", "|---|---|---|"]
     lines += [
-        f"| `{c.effect.name}` | {c.reason} | {alone.get(c.effect.name, float('nan')):.4g} |"
+        f"| `{c.effect.name}` | {c.reason} | {_alone_cell(alone, c.effect.name)} |"
         for c in result.candidates
     ]
     return lines
