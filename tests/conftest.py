@@ -1,6 +1,7 @@
 """Shared synthetic systems for the tests (noise-free unless stated)."""
 
 import os
+import shutil
 import tempfile
 
 # Set before JAX starts, for this process and every process it spawns (xdist workers,
@@ -10,8 +11,10 @@ import tempfile
 os.environ.setdefault(
     "XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
 )
+CREATED_CACHE = None
 if "JAX_COMPILATION_CACHE_DIR" not in os.environ:
-    os.environ["JAX_COMPILATION_CACHE_DIR"] = tempfile.mkdtemp(prefix="sk_offwhite_jax_")
+    CREATED_CACHE = tempfile.mkdtemp(prefix="sk_offwhite_jax_")
+    os.environ["JAX_COMPILATION_CACHE_DIR"] = CREATED_CACHE
 
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
@@ -30,6 +33,12 @@ LONGEST_FIRST = (
     "test_vehicle.py",
 )
 """Modules by decreasing run time (about 220 s to 50 s on 2 cores), scheduled first."""
+
+
+def pytest_unconfigure(config):
+    """The process that created the compilation cache removes it at the end of the run."""
+    if CREATED_CACHE is not None:
+        shutil.rmtree(CREATED_CACHE, ignore_errors=True)
 
 
 def pytest_collection_modifyitems(items):
