@@ -142,13 +142,13 @@ def _cv_rmse(est, u, z, settings: LoopSettings) -> float:
     return float(-np.mean(scores))
 
 
-def _fit_delta(physics, library, u, z, settings, gamma_grid=None):
+def _fit_delta(physics, library, u, z, settings):
     """Physics + δ with γ chosen by CV RMSE, refitted on the whole record.
 
     With a single γ there is nothing to choose: it is fitted directly and its CV score is
     reported as ``nan``.
     """
-    gammas = list(gamma_grid or settings.gammas)
+    gammas = list(settings.gammas)
     est = _estimator(
         physics, settings, cv=True, library=library, delta_states=settings.delta_states
     )
@@ -168,8 +168,9 @@ def _fit_delta(physics, library, u, z, settings, gamma_grid=None):
     return best, scores
 
 
-def _estimation_rmse(est, u, z) -> float:
-    error = est.predict(u) - np.asarray(z, float).reshape(len(u), -1)
+def _rmse(outputs, z: np.ndarray) -> float:
+    """RMSE of simulated ``outputs`` against ``z`` (2-D); ``inf`` for a diverged simulation."""
+    error = np.reshape(outputs, z.shape) - z
     value = float(np.sqrt(np.mean(error**2)))
     return value if np.isfinite(value) else np.inf
 
@@ -187,7 +188,7 @@ def _rank_alone(physics, candidates, u, z, settings):
         except ValueError:  # e.g. the effect's initial guess does not simulate
             ranked.append((np.inf, candidate))
             continue
-        ranked.append((_estimation_rmse(est, u, z), candidate))
+        ranked.append((_rmse(est.predict(u), z), candidate))
     return sorted(ranked, key=lambda item: item[0])
 
 
@@ -243,12 +244,11 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
         input_names=physics.input_names,
     )
     effects, trail, singles = _select_effects(
-        start, candidates, u, z, settings, _estimation_rmse(baseline, u, z)
+        start, candidates, u, z, settings, _rmse(run.outputs, z)
     )
-    final = fit_continued(_estimator(augment(start, *effects), settings), u, z, settings.horizon)
-    final_delta, final_gammas = _fit_delta(
-        warm_physics(augment(start, *effects), final), library, u, z, settings
-    )
+    augmented = augment(start, *effects)
+    final = fit_continued(_estimator(augmented, settings), u, z, settings.horizon)
+    final_delta, final_gammas = _fit_delta(warm_physics(augmented, final), library, u, z, settings)
     return LoopResult(
         physics,
         augment(physics, *effects),
