@@ -1,7 +1,6 @@
 """sk_offwhite: physics-based multi-step system identification with sparse corrections."""
 
 from ._basis import RidgeBasis, compile_basis
-from ._continuation import fit_gamma_path
 from ._effects import (
     Effect,
     Friction,
@@ -13,11 +12,13 @@ from ._effects import (
     augment,
 )
 from ._estimator import GreyBoxSparseRegressor, expected_failed_checks
+from ._path import GammaPath, fit_gamma_path, gamma_grid
 from ._physics import Parameter, PhysicsModel
 
 __all__ = [
     "Effect",
     "Friction",
+    "GammaPath",
     "GreyBoxSparseRegressor",
     "InputSaturation",
     "Leak",
@@ -31,5 +32,6 @@ __all__ = [
     "compile_basis",
     "expected_failed_checks",
     "fit_gamma_path",
+    "gamma_grid",
 ]
 __version__ = "0.1.0.dev0"

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import copy
+import hashlib
 import warnings
 from numbers import Integral, Real
 
@@ -19,6 +20,7 @@ from sklearn.utils.validation import _check_feature_names, check_is_fitted
 
 from ._basis import compile_basis
 from ._equations import format_equations
+from ._objective import CostWeights
 from ._physics import PhysicsModel
 from ._problem import (
     SolverOptions,
@@ -29,6 +31,7 @@ from ._problem import (
 )
 from ._rollout import free_run
 from ._segments import split_at_gaps
+from ._sparsity import SparseOptions
 from ._validation import (
     as_records,
     check_input_width,
@@ -111,12 +114,19 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
 
     .. math::
 
-        C_T = \frac{1}{N n_z}\sum_k \|\hat z_k - z_k\|^2 + \gamma \|\Omega\|_{1,\beta}
+        C_T = \frac{1}{N n_z}\sum_{k,o} \frac{(\hat z_{ko} - z_{ko})^2}{\sigma_o^2}
+            + \gamma \sum_{ij} s_{ij} |\Omega_{ij}|_\beta
             + \frac{\lambda}{N}\sum_k \|\max(p(\hat x_k), 0)\|^2
             + \frac{\nu}{N}\sum_k \|q(\hat x_k)\|^2,
 
-    where :math:`\hat z` is the *simulated* output (the model feeds back its own state).
-    After the fit, weights with :math:`|\Omega_{ij}| \le` ``threshold`` are set to zero.
+    where :math:`\hat z` is the *simulated* output (the model feeds back its own state),
+    :math:`\sigma_o` the standard deviation of output :math:`o` and :math:`s_{ij}` the RMS
+    change of the normalised simulated output per unit :math:`\Omega_{ij}`, measured on the
+    physics-only fit. Every term is dimensionless: rescaling ``u``, ``z``, the states or a
+    dictionary column leaves the fitted model unchanged. With a dictionary the fit has three
+    stages (see :mod:`sk_offwhite._sparsity`): the physics alone, which gives
+    :math:`s_{ij}` and ``gamma_max_``; the penalised fit; pruning of the terms that do not
+    matter and a refit of the support without the penalty, so ``coef_`` has exact zeros.
 
     Parameters
     ----------
@@ -126,8 +136,12 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     library : pysindy feature library or RidgeBasis, default=None
         Dictionary :math:`\varphi` of the correction, evaluated on :math:`[x; u]` with the
         physics' state and input names. ``None`` fits the physics alone.
-    gamma : float, default=0.1
-        :math:`\gamma`, weight of the (smoothed) L1 norm of :math:`\Omega`.
+    gamma : float, default=0.01
+        :math:`\gamma`, weight of the scaled (smoothed) L1 norm of :math:`\Omega`;
+        dimensionless. A term is worth keeping when the RMS change it makes in the simulated
+        output exceeds about ``gamma`` output standard deviations; above ``gamma_max_`` the
+        correction is empty. :func:`~sk_offwhite.fit_gamma_path` fits a grid relative to
+        ``gamma_max_`` and chooses by cross-validation.
     lam : float, default=0.0
         :math:`\lambda`, weight of the violation of ``physics.inequality`` (:math:`p\le 0`).
     nu : float, default=0.0
@@ -138,10 +152,17 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         continuity penalty of weight ``shooting_weight`` (multiple shooting).
     delta_states : sequence of int, default=None
         State equations that receive the correction; ``None`` means all.
-    threshold : float, default=1e-4
-        Weights with :math:`|\Omega_{ij}|` at or below it are set to zero after the fit.
-    l1_smoothing : float, default=1000.0
-        :math:`\beta` of the softplus surrogate of :math:`|w|` (larger is closer to L1).
+    prune_tol : float, default=0.01
+        Relative tolerance of the pruning stage: a term is removed when its contribution
+        :math:`s_{ij}|\Omega_{ij}|` is below ``prune_tol`` times the largest, or when zeroing
+        it raises the simulation error :math:`F` by less than the fraction ``prune_tol``.
+        ``0`` keeps every term.
+    refit : bool, default=True
+        Refit the pruned support without the penalty (removes the shrinkage of the L1
+        term); ``False`` keeps the penalised weights of the support.
+    l1_smoothing : float, default=100.0
+        :math:`\beta` of the softplus surrogate of :math:`|s_{ij}\Omega_{ij}|` (larger is
+        closer to L1); dimensionless like ``gamma``.
     shooting_weight : float, default=10.0
         Weight of the window-continuity penalty when ``horizon`` is set.
     solver : {'auto', 'lm', 'optax'}, default='auto'
@@ -176,8 +197,17 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     x0_ : ndarray of shape (n_states,)
         Fitted initial state of the first record; ``initial_states_`` holds all records'.
     coef_ : ndarray of shape (n_delta_states, n_features)
-        :math:`\Omega` after thresholding (empty without a library).
+        :math:`\Omega` with exact zeros off the support (empty without a library).
     support_ : ndarray of bool, same shape as ``coef_``
+        Where ``coef_`` is non-zero; ``n_nonzero_`` counts them.
+    penalty_scale_ : ndarray, same shape as ``coef_``
+        :math:`s_{ij}`; ``penalty_scale_ * abs(coef_)`` is each term's contribution to the
+        simulated output in output standard deviations (0 for a term that cannot move it).
+    gamma_max_ : float
+        Smallest ``gamma`` for which :math:`\Omega = 0` is optimal (``nan`` without a
+        library).
+    output_scale_ : ndarray of shape (n_outputs,)
+        :math:`\sigma_o` of the training data.
     feature_names_ : list of str
         Names of the dictionary terms (from the pysindy library).
     delta_states_ : tuple of int
@@ -205,7 +235,8 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         "nu": [Interval(Real, 0, None, closed="left")],
         "horizon": [Interval(Integral, 1, None, closed="left"), None],
         "delta_states": ["array-like", None],
-        "threshold": [Interval(Real, 0, None, closed="left")],
+        "prune_tol": [Interval(Real, 0, 1, closed="left")],
+        "refit": ["boolean"],
         "l1_smoothing": [Interval(Real, 0, None, closed="neither")],
         "shooting_weight": [Interval(Real, 0, None, closed="left")],
         "solver": [StrOptions({"auto", "lm", "optax"})],
@@ -222,14 +253,15 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         self,
         physics: PhysicsModel | None = None,
         library=None,
-        gamma: float = 0.1,
+        gamma: float = 0.01,
         lam: float = 0.0,
         nu: float = 0.0,
         horizon: int | None = None,
         *,
         delta_states=None,
-        threshold: float = 1e-4,
-        l1_smoothing: float = 1000.0,
+        prune_tol: float = 0.01,
+        refit: bool = True,
+        l1_smoothing: float = 100.0,
         shooting_weight: float = 10.0,
         solver: str = "auto",
         optimizer=None,
@@ -247,7 +279,8 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         self.nu = nu
         self.horizon = horizon
         self.delta_states = delta_states
-        self.threshold = threshold
+        self.prune_tol = prune_tol
+        self.refit = refit
         self.l1_smoothing = l1_smoothing
         self.shooting_weight = shooting_weight
         self.solver = solver
@@ -290,6 +323,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     def __getstate__(self):
         state = super().__getstate__()
         state.pop("_compiled", None)
+        state.pop("_reference", None)
         return state
 
     # ------------------------------------------------------------------ data
@@ -347,6 +381,11 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         -------
         self : GreyBoxSparseRegressor
         """
+        return self._fit(u, z, sample_index, reference_only=False)
+
+    def _fit(self, u, z, sample_index, reference_only: bool):
+        """``fit``; ``reference_only`` stops after the physics-only stage (``coef_`` zero,
+        ``gamma_max_`` computed), which is how :func:`~sk_offwhite.fit_gamma_path` starts."""
         records = self._records(u, z, sample_index, reset=True)
         n_inputs, n_outputs = records[0][0].shape[1], records[0][1].shape[1]
         self._check_record_lengths(records)
@@ -354,8 +393,8 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         with jax.enable_x64(True):
             check_physics(physics, n_inputs, n_outputs, records[0][0][0])
             basis, model = self._compile(physics)
-            blocks, result, segments = self._solve(physics, basis, model, records)
-        self._store(physics, basis, model, blocks, result, segments, n_outputs)
+            outcome = self._solve(physics, basis, model, records, reference_only)
+        self._store(physics, basis, model, outcome, n_outputs)
         return self
 
     def _check_record_lengths(self, records) -> None:
@@ -376,16 +415,46 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
             basis = compile_basis(self.library, features, len(delta_states), self.random_state)
         return basis, build_model(physics, basis, delta_states)
 
-    def _solve(self, physics, basis, model, records):
+    def _solve(self, physics, basis, model, records, reference_only=False):
         weights = (self.gamma, self.lam, self.nu, self.shooting_weight, self.l1_smoothing)
         options = SolverOptions(
             self.solver, self._optimizer(), self.max_iter, self.tol, self.verbose
         )
-        blocks, result, segments = fit_records(
-            physics, basis, model, records, self.horizon, weights, options, self._warm_blocks()
+        outcome = fit_records(
+            physics,
+            basis,
+            model,
+            records,
+            self.horizon,
+            weights,
+            options,
+            self._warm_blocks(),
+            SparseOptions(self.prune_tol, self.refit, reference_only),
+            self._cached_reference(key := self._reference_key(physics, records)),
         )
-        self._warn_if_unfinished(result)
-        return blocks, result, segments
+        self._warn_if_unfinished(outcome.result)
+        self._reference = None if outcome.reference is None else (key, outcome.reference)
+        return outcome
+
+    def _reference_key(self, physics, records) -> str:
+        """Fingerprint of what the physics-only stage depends on: data and structure."""
+        digest = hashlib.sha1()
+        for u, z in records:
+            digest.update(np.ascontiguousarray(u, float).tobytes())
+            digest.update(np.ascontiguousarray(z, float).tobytes())
+        settings = (
+            id(physics), id(self.library), physics.parameter_values().tobytes(),
+            np.asarray(physics.x0, float).tobytes(), self.horizon, self._delta_states(physics),
+            self.lam, self.nu, self.shooting_weight, self.solver, self.max_iter, self.tol,
+            self.random_state,
+        )  # fmt: skip
+        digest.update(repr(settings).encode())
+        return digest.hexdigest()
+
+    def _cached_reference(self, key: str):
+        """The physics-only stage of the previous fit if it had the same data and structure."""
+        cached = getattr(self, "_reference", None)
+        return cached[1] if cached is not None and cached[0] == key else None
 
     def _warm_blocks(self) -> dict | None:
         """The previous solution as starting blocks (``warm_start``), else ``None``."""
@@ -413,7 +482,8 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
                 stacklevel=3,
             )
 
-    def _store(self, physics, basis, model, blocks, result, segments, n_outputs) -> None:
+    def _store(self, physics, basis, model, outcome, n_outputs) -> None:
+        blocks, result, segments = outcome.blocks, outcome.result, outcome.segments
         self.physics_ = physics
         self.n_outputs_ = n_outputs
         self.theta_ = np.asarray(blocks["theta"], float)
@@ -421,8 +491,13 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         self.initial_states_ = np.asarray(blocks["x0"], float)[segments.linked == 0]
         self.x0_ = self.initial_states_[0].copy()
         omega = np.asarray(blocks.get("omega", np.zeros((0, 0))), float)
-        self.coef_ = np.where(np.abs(omega) <= self.threshold, 0.0, omega)
+        self.coef_ = omega
         self.support_ = self.coef_ != 0
+        self.n_nonzero_ = int(np.sum(self.support_))
+        self.penalty_scale_ = np.asarray(outcome.penalty_scale, float)
+        self.gamma_max_ = float(outcome.gamma_max)
+        self.output_scale_ = np.asarray(outcome.weights.output_scale, float)
+        self._state_scale = np.asarray(outcome.weights.state_scale, float)
         self.feature_names_ = [] if basis is None else list(basis.names)
         self.delta_states_ = model.delta_states
         self.inner_params_ = {k: np.asarray(blocks[k], float) for k in model.inner_names}
@@ -437,6 +512,15 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         if compiled is None:
             compiled = self._compile(self.physics_)
         return compiled[1]
+
+    def _fitted_cost_weights(self) -> CostWeights:
+        """The weights and scales of the fitted cost (numpy), to rebuild it."""
+        scales = {"output_scale": self.output_scale_, "state_scale": self._state_scale}
+        if self.coef_.size:
+            scales["penalty_scale"] = np.where(self.penalty_scale_ > 0, self.penalty_scale_, 1.0)
+        return CostWeights(
+            self.gamma, self.lam, self.nu, self.shooting_weight, self.l1_smoothing, **scales
+        )
 
     def _fitted_blocks(self) -> dict:
         blocks = {"theta": self.theta_}

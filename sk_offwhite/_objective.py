@@ -6,17 +6,28 @@ first-order methods:
 
 .. math::
 
-    C = \underbrace{\frac{1}{N n_z}\sum_k \|\hat z_k - z_k\|^2}_{\text{simulation MSE}}
-      + \gamma \sum_{ij} |\Omega_{ij}|_\beta
+    C = \underbrace{\frac{1}{N n_z}\sum_{k,o} \frac{(\hat z_{ko} - z_{ko})^2}{\sigma_o^2}}
+          _{\text{normalised simulation MSE } F}
+      + \gamma \sum_{ij} |s_{ij}\Omega_{ij}|_\beta
       + \frac{\lambda}{N} \sum_k \|\max(p(\hat x_k), 0)\|^2
       + \frac{\nu}{N} \sum_k \|q(\hat x_k)\|^2
-      + \frac{\rho}{n_\ell n_x} \sum_{\ell} \|\hat x^{(\ell-1)}_{T} - \hat x^{(\ell)}_0\|^2
+      + \frac{\rho}{n_\ell n_x} \sum_{\ell, i}
+        \frac{(\hat x^{(\ell-1)}_{T,i} - \hat x^{(\ell)}_{0,i})^2}{\varsigma_i^2}
 
 with :math:`|w|_\beta = (\mathrm{softplus}(\beta w) + \mathrm{softplus}(-\beta w))/\beta`,
 a smooth, strictly positive surrogate of :math:`|w|` (its residual
 :math:`\sqrt{\gamma |w|_\beta}` is differentiable everywhere), and the last term the
 continuity of consecutive shooting windows (only when a ``horizon`` cuts records). The L1
 weight is counted once, not once per time step as in the paper's sum over :math:`k`.
+
+Every term is dimensionless, so that rescaling inputs, outputs, states or a dictionary
+column changes neither the minimiser nor the meaning of the weights: :math:`\sigma_o` is the
+standard deviation of output :math:`o` over the data, :math:`\varsigma_i` a scale of state
+:math:`i` (the spread of the shooting windows' initial states) and :math:`s_{ij}` the RMS
+sensitivity of the normalised simulated output to :math:`\Omega_{ij}`
+(:func:`~sk_offwhite._sparsity.penalty_scale`), so :math:`s_{ij}|\Omega_{ij}|` is the RMS
+change of the simulated output that term :math:`j` of equation :math:`i` makes, in units
+of the output's standard deviation.
 """
 
 from __future__ import annotations
@@ -25,28 +36,67 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
 from ._rollout import Model, theta_dict
 
-__all__ = ["CostWeights", "smooth_abs", "rollout_segments", "residuals"]
+__all__ = [
+    "CostWeights",
+    "majorised_l1",
+    "majoriser_constant",
+    "n_fit_residuals",
+    "residuals",
+    "rollout_segments",
+    "smooth_abs",
+]
 
 
 class CostWeights(NamedTuple):
-    """Dynamic weights of the cost terms (changing them does not re-trace)."""
+    r"""Dynamic weights and scales of the cost terms (changing them does not re-trace).
+
+    ``output_scale`` (:math:`\sigma_o`), ``state_scale`` (:math:`\varsigma_i`) and
+    ``penalty_scale`` (:math:`s_{ij}`) broadcast against the outputs, the states and
+    :math:`\Omega`; the defaults (1) leave the terms in the data's own units.
+    ``l1_anchor`` (:math:`\Omega` at the current iterate, set by Levenberg-Marquardt)
+    replaces the smoothed :math:`\ell_1` term by its quadratic majoriser
+    (:func:`majorised_l1`).
+    """
 
     gamma: float
     lam: float
     nu: float
     shooting: float
     beta: float
+    output_scale: float = 1.0
+    state_scale: float = 1.0
+    penalty_scale: float = 1.0
+    l1_anchor: object = None
 
 
 def smooth_abs(w, beta):
-    r"""Smooth, positive surrogate of :math:`|w|`: :math:`(s(\beta w) + s(-\beta w))/\beta`.
+    r"""Smooth, positive surrogate of :math:`|w|`: :math:`\sqrt{w^2 + \beta^{-2}}`.
 
-    ``s`` is the softplus; the surrogate exceeds :math:`|w|` by at most :math:`2\log 2/\beta`.
+    It exceeds :math:`|w|` by at most :math:`1/\beta`, and is quadratic for
+    :math:`|w| \ll 1/\beta`.
     """
-    return (jax.nn.softplus(beta * w) + jax.nn.softplus(-beta * w)) / beta
+    return jnp.sqrt(w**2 + beta**-2.0)
+
+
+def majorised_l1(scaled, anchor, beta):
+    r"""Residuals and constant of the quadratic majoriser of :math:`\sum_j|x_j|_\beta` at
+    ``anchor`` :math:`a`:
+
+    .. math::
+
+        |x|_\beta \le \frac{x^2}{2|a|_\beta} + |a|_\beta - \frac{a^2}{2|a|_\beta},
+
+    with equality at :math:`x = a` (the square root is concave in :math:`x^2`). Written as
+    residuals :math:`x/\sqrt{2|a|_\beta}` it is exactly quadratic, so Gauss-Newton models it
+    without error; minimising it and moving the anchor is reweighted least squares, which
+    never increases the penalised cost.
+    """
+    size = smooth_abs(anchor, beta)
+    return scaled / jnp.sqrt(2.0 * size), jnp.sum(size - anchor**2 / (2.0 * size))
 
 
 def rollout_segments(model: Model, params: dict, segments):
@@ -59,16 +109,17 @@ def rollout_segments(model: Model, params: dict, segments):
     return jax.vmap(one)(params["x0"], segments.u)
 
 
-def _fit_residual(outputs, segments):
+def _fit_residual(outputs, segments, output_scale):
     n_valid = jnp.maximum(jnp.sum(segments.mask) * outputs.shape[-1], 1.0)
-    error = (outputs - segments.z) * segments.mask[..., None]
+    error = (outputs - segments.z) / output_scale * segments.mask[..., None]
     return error.reshape(-1) / jnp.sqrt(n_valid)
 
 
-def _shooting_residual(states_final, params, segments, weight):
-    gap = (states_final[:-1] - params["x0"][1:]) * segments.linked[1:, None]
+def _shooting_residual(states_final, params, segments, weights):
+    gap = (states_final[:-1] - params["x0"][1:]) / weights.state_scale
+    gap = gap * segments.linked[1:, None]
     n_links = jnp.maximum(jnp.sum(segments.linked) * gap.shape[-1], 1.0)
-    return jnp.sqrt(weight / n_links) * gap.reshape(-1)
+    return jnp.sqrt(weights.shooting / n_links) * gap.reshape(-1)
 
 
 def _constraint_residual(model: Model, constraint, params, states, segments, weight, hinge):
@@ -86,18 +137,36 @@ def _constraint_residual(model: Model, constraint, params, states, segments, wei
 def _sparsity_residual(params, omega_free, weights):
     if "omega" not in params:
         return jnp.zeros(0)
-    root = jnp.sqrt(smooth_abs(params["omega"], weights.beta)) * omega_free
-    return (jnp.sqrt(weights.gamma) * root).reshape(-1)
+    scaled = params["omega"] * weights.penalty_scale
+    if weights.l1_anchor is None:
+        root = jnp.sqrt(smooth_abs(scaled, weights.beta))
+    else:
+        root, _ = majorised_l1(scaled, weights.l1_anchor * weights.penalty_scale, weights.beta)
+    return (jnp.sqrt(weights.gamma) * root * omega_free).reshape(-1)
+
+
+def majoriser_constant(omega, omega_free, weights):
+    r"""Constant that makes :math:`\|r\|^2` the majorised cost (0 without an anchor)."""
+    if weights.l1_anchor is None or omega is None:
+        return jnp.zeros(())
+    anchor = weights.l1_anchor * weights.penalty_scale * omega_free
+    _, constant = majorised_l1(anchor, anchor, weights.beta)
+    return weights.gamma * constant
 
 
 def residuals(model: Model, params: dict, segments, omega_free, weights: CostWeights):
     r"""Stacked residual vector :math:`r` with :math:`C = \|r\|^2` (see module docstring)."""
     states, outputs, finals = rollout_segments(model, params, segments)
     parts = [
-        _fit_residual(outputs, segments),
-        _shooting_residual(finals, params, segments, weights.shooting),
+        _fit_residual(outputs, segments, weights.output_scale),
+        _shooting_residual(finals, params, segments, weights),
         _sparsity_residual(params, omega_free, weights),
         _constraint_residual(model, model.inequality, params, states, segments, weights.lam, True),
         _constraint_residual(model, model.equality, params, states, segments, weights.nu, False),
     ]
     return jnp.concatenate(parts)
+
+
+def n_fit_residuals(segments) -> int:
+    """Number of leading entries of :func:`residuals` that are the (normalised) fit errors."""
+    return int(np.prod(np.shape(segments.z)))

@@ -24,11 +24,19 @@ import optax
 from sklearn.exceptions import ConvergenceWarning
 
 from ._layout import Layout
-from ._objective import CostWeights, residuals
+from ._objective import CostWeights, majoriser_constant, residuals
 from ._rollout import Model
 from ._segments import Segments
 
-__all__ = ["Problem", "SolverResult", "free_residuals", "levenberg_marquardt", "run_optax"]
+__all__ = [
+    "Problem",
+    "SolverResult",
+    "fit_cost",
+    "free_residuals",
+    "jacobian_columns",
+    "levenberg_marquardt",
+    "run_optax",
+]
 
 
 class Problem(NamedTuple):
@@ -41,6 +49,7 @@ class Problem(NamedTuple):
     upper: jax.Array
     omega_free: jax.Array
     weights: CostWeights
+    active: jax.Array
 
 
 class SolverResult(NamedTuple):
@@ -55,9 +64,41 @@ class SolverResult(NamedTuple):
 
 
 def free_residuals(free, problem: Problem, model: Model, layout: Layout):
-    """Residual vector as a function of the free variables only."""
+    """Residual vector as a function of the free variables only.
+
+    Entries where ``problem.active`` is 0 are frozen: they keep their value, and their
+    derivatives (Jacobian columns, gradient entries) are exactly zero, so every solver leaves
+    them where they are. Freezing is data, not structure: it does not re-trace.
+    """
+    free = jnp.where(problem.active > 0, free, jax.lax.stop_gradient(free))
     params = layout.unflatten(problem.base.at[problem.free_index].set(free))
     return residuals(model, params, problem.segments, problem.omega_free, problem.weights)
+
+
+@partial(jax.jit, static_argnames=("model", "layout", "n_fit"))
+def fit_cost(free, problem: Problem, *, model: Model, layout: Layout, n_fit: int):
+    r"""The fit term :math:`F = \|r_{fit}\|^2` alone (the first ``n_fit`` residuals)."""
+    r = free_residuals(free, problem, model, layout)[:n_fit]
+    return r @ r
+
+
+@partial(jax.jit, static_argnames=("model", "layout"))
+def jacobian_columns(free, problem: Problem, columns, *, model: Model, layout: Layout):
+    """Residuals and the Jacobian columns of the free variables at ``columns`` (forward mode).
+
+    One tangent per column (a ``vmap`` of ``jvp``), so the cost grows with the number of
+    columns asked for, not with the number of free variables.
+    """
+    fun = partial(free_residuals, problem=problem, model=model, layout=layout)
+    tangents = jax.nn.one_hot(columns, free.shape[0], dtype=free.dtype)
+    residual = fun(free)
+    columns_out = jax.vmap(lambda t: jax.jvp(fun, (free,), (t,))[1])(tangents)
+    return residual, columns_out.T
+
+
+ROUNDING_COST = 1e-24
+"""A (dimensionless) cost at which the simulation reproduces the data to rounding: an RMS
+error of 1e-12 output standard deviations."""
 
 
 class _LMState(NamedTuple):
@@ -66,18 +107,34 @@ class _LMState(NamedTuple):
     jacobian: jax.Array
     cost: jax.Array
     damping: jax.Array
+    anchor: jax.Array
 
 
-def _jacobian(free, problem, model, layout, forward):
-    fun = partial(free_residuals, problem=problem, model=model, layout=layout)
-    return (jax.jacfwd if forward else jax.jacrev)(fun)(free)
+def _anchored(problem: Problem, anchor) -> Problem:
+    """``problem`` whose L1 term is majorised at ``anchor`` (see ``majorised_l1``)."""
+    return problem._replace(weights=problem.weights._replace(l1_anchor=anchor))
+
+
+def _omega(free, problem: Problem, layout: Layout):
+    r""":math:`\Omega` at the free vector ``free`` (an empty array without a dictionary)."""
+    params = layout.unflatten(problem.base.at[problem.free_index].set(free))
+    return params.get("omega", jnp.zeros(0))
+
+
+def _evaluate(free, problem, model, layout, forward):
+    """Residual, Jacobian and penalised cost at ``free``, the L1 term majorised there."""
+    anchor = _omega(free, problem, layout)
+    anchored = _anchored(problem, anchor)
+    fun = partial(free_residuals, problem=anchored, model=model, layout=layout)
+    jac, r = (jax.jacfwd if forward else jax.jacrev)(lambda f: (fun(f), fun(f)), has_aux=True)(free)
+    constant = majoriser_constant(anchor, problem.omega_free, anchored.weights)
+    return r, jac, r @ r + constant, anchor
 
 
 @partial(jax.jit, static_argnames=("model", "layout", "forward"))
 def _lm_init(free, problem, *, model, layout, forward):
-    r = free_residuals(free, problem, model, layout)
-    jac = _jacobian(free, problem, model, layout, forward)
-    return _LMState(free, r, jac, r @ r, jnp.asarray(1e-3, free.dtype))
+    r, jac, cost, anchor = _evaluate(free, problem, model, layout, forward)
+    return _LMState(free, r, jac, cost, jnp.asarray(1e-3, free.dtype), anchor)
 
 
 def _lm_trial_step(state: _LMState, problem: Problem):
@@ -93,23 +150,24 @@ def _lm_trial_step(state: _LMState, problem: Problem):
 
 @partial(jax.jit, static_argnames=("model", "layout", "forward"))
 def _lm_iteration(state: _LMState, problem, *, model, layout, forward):
+    r"""One trial step, accepted when the majorised cost at the current anchor decreases
+    (which guarantees a decrease of the penalised cost); the anchor then moves to it."""
     candidate = _lm_trial_step(state, problem)
-    r_new = free_residuals(candidate, problem, model, layout)
-    cost_new = r_new @ r_new
-    accept = jnp.isfinite(cost_new) & (cost_new < state.cost)
-    jac = jax.lax.cond(
+    anchored = _anchored(problem, state.anchor)
+    r_trial = free_residuals(candidate, anchored, model, layout)
+    bound = r_trial @ r_trial + majoriser_constant(
+        state.anchor, problem.omega_free, anchored.weights
+    )
+    accept = jnp.isfinite(bound) & (bound < state.cost)
+    moved = jax.lax.cond(
         accept,
-        lambda: _jacobian(candidate, problem, model, layout, forward),
-        lambda: state.jacobian,
+        lambda: _evaluate(candidate, problem, model, layout, forward),
+        lambda: (state.residual, state.jacobian, state.cost, state.anchor),
     )
+    residual, jacobian, cost, anchor = moved
     choose = partial(jnp.where, accept)
-    new = _LMState(
-        choose(candidate, state.free),
-        choose(r_new, state.residual),
-        jac,
-        choose(cost_new, state.cost),
-        choose(state.damping / 3.0, state.damping * 4.0),
-    )
+    damping = choose(state.damping / 3.0, state.damping * 4.0)
+    new = _LMState(choose(candidate, state.free), residual, jacobian, cost, damping, anchor)
     return new, accept
 
 
@@ -126,11 +184,13 @@ def levenberg_marquardt(
     r"""Projected Levenberg-Marquardt on :math:`\|r(\cdot)\|^2`.
 
     Stops when a nearly undamped (Gauss-Newton, damping below ``1``) accepted step lowers
-    the cost by less than ``tol`` (relative), or when the damping grows past ``1e10`` (no
+    the cost by less than ``tol`` (relative), when the cost reaches :data:`ROUNDING_COST`
+    (the cost is dimensionless), or when the damping grows past ``1e10`` (no
     descent step exists: a stationary point up to numerical precision). A small decrease
     under heavy damping only means the step was short, not that the fit has converged.
     """
-    n_residuals = int(free_residuals(free0, problem, model, layout).shape[0])
+    shape = jax.eval_shape(partial(free_residuals, model=model, layout=layout), free0, problem)
+    n_residuals = int(shape.shape[0])
     forward = free0.shape[0] <= n_residuals
     static = dict(model=model, layout=layout, forward=forward)
     state = _lm_init(free0, problem, **static)
@@ -144,6 +204,9 @@ def levenberg_marquardt(
             small = previous - history[-1] <= tol * max(previous, 1e-300)
             if small and damping < 1.0:
                 converged, message = True, "relative cost decrease below tol"
+                break
+            if history[-1] <= ROUNDING_COST:
+                converged, message = True, "cost at rounding level (the data are reproduced)"
                 break
         elif float(state.damping) > 1e10:
             converged, message = True, "no descent step left (stationary point)"

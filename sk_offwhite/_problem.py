@@ -19,9 +19,10 @@ from ._optim import Problem, SolverResult, levenberg_marquardt, run_optax
 from ._physics import PhysicsModel
 from ._rollout import Model, jit_simulate
 from ._segments import Segments, make_segments
+from ._sparsity import SparseOptions, fit_sparse, output_scale, state_scale
 
 __all__ = [
-    "FittedBlocks",
+    "FitOutcome",
     "build_model",
     "estimate_initial_state",
     "initial_blocks",
@@ -29,13 +30,6 @@ __all__ = [
 ]
 
 LM_MAX_FREE = 400
-
-
-class FittedBlocks(NamedTuple):
-    """Fitted decision variables as numpy arrays, with the solver diagnostics."""
-
-    blocks: dict
-    result: SolverResult
 
 
 def build_model(physics: PhysicsModel, basis, delta_states: tuple[int, ...]) -> Model:
@@ -144,8 +138,17 @@ def bound_blocks(physics, blocks) -> tuple[dict, dict]:
     return lower, upper
 
 
+def cost_weights(weights) -> CostWeights:
+    """:class:`CostWeights` of JAX arrays from a ``CostWeights`` or the five scalar weights
+    ``(gamma, lam, nu, shooting, beta)`` (scales 1)."""
+    return CostWeights(
+        *(None if w is None else jnp.asarray(np.asarray(w, dtype=float)) for w in weights)
+    )
+
+
 def make_problem(layout, blocks, free, bounds, segments, weights) -> tuple[Problem, jax.Array]:
-    """Assemble the dynamic :class:`Problem` and the initial free vector."""
+    """Assemble the dynamic :class:`Problem` (every free variable active) and the initial
+    free vector; ``weights`` as for :func:`cost_weights`."""
     free_index = np.flatnonzero(layout.flatten(free))
     base = layout.flatten(blocks)
     lower, upper = (layout.flatten(b)[free_index] for b in bounds)
@@ -157,7 +160,8 @@ def make_problem(layout, blocks, free, bounds, segments, weights) -> tuple[Probl
         jnp.asarray(lower),
         jnp.asarray(upper),
         jnp.asarray(omega_free, float),
-        CostWeights(*(jnp.asarray(float(w)) for w in weights)),
+        cost_weights(weights),
+        jnp.ones(free_index.shape[0]),
     )
     return problem, jnp.asarray(np.clip(base[free_index], lower, upper))
 
@@ -172,24 +176,80 @@ class SolverOptions(NamedTuple):
     verbose: int
 
 
-def fit_records(physics, basis, model, records, horizon, weights, options, warm=None):
+class FitOutcome(NamedTuple):
+    r"""What :func:`fit_records` returns: fitted blocks, solver result, segments and scales.
+
+    ``penalty_scale`` (shape of :math:`\Omega`, empty without a dictionary) and
+    ``gamma_max`` are those of :mod:`~sk_offwhite._sparsity`; ``weights`` the
+    :class:`CostWeights` with the data's scales; ``reference`` the physics-only stage, to
+    reuse (``None`` without a dictionary).
+    """
+
+    blocks: dict
+    result: SolverResult
+    segments: Segments
+    weights: CostWeights
+    penalty_scale: np.ndarray
+    gamma_max: float
+    reference: object
+
+
+def scaled_weights(weights, records, window_starts) -> CostWeights:
+    """``weights`` (the five scalars) with the output and state scales of the data."""
+    return CostWeights(
+        *weights,
+        output_scale=output_scale(records),
+        state_scale=state_scale(window_starts),
+    )
+
+
+def fit_records(
+    physics,
+    basis,
+    model,
+    records,
+    horizon,
+    weights,
+    options,
+    warm=None,
+    sparse=None,
+    reference=None,
+) -> FitOutcome:
     """Minimise the cost over all records: the pure core of ``fit``.
 
-    ``options`` is a :class:`SolverOptions`; ``warm`` optional starting blocks (see
-    :func:`initial_blocks`). Returns the fitted blocks (numpy), the :class:`SolverResult`
-    and the segments.
+    ``weights`` are the five scalars ``(gamma, lam, nu, shooting, beta)``; the output and
+    state scales are taken from the data (:func:`scaled_weights`). ``options`` is a
+    :class:`SolverOptions`; ``warm`` optional starting blocks (see :func:`initial_blocks`);
+    ``sparse`` the :class:`~sk_offwhite._sparsity.SparseOptions` of a fit with a dictionary
+    (the three stages of :mod:`~sk_offwhite._sparsity`); ``reference`` the
+    :class:`~sk_offwhite._sparsity.Reference` of an earlier fit of the same data and
+    structure, which skips the physics-only stage.
     """
     segments = make_segments(records, horizon)
     blocks = initial_blocks(physics, basis, model, records, segments, horizon, warm)
     free = free_blocks(physics, basis, model, segments)
     layout = Layout.from_arrays(blocks)
+    cost = scaled_weights(weights, records, blocks["x0"])
     problem, free0 = make_problem(
-        layout, blocks, free, bound_blocks(physics, blocks), segments, weights
+        layout, blocks, free, bound_blocks(physics, blocks), segments, cost
     )
     if free0.shape[0] == 0:
         raise ValueError("nothing to fit: every parameter and initial state is fixed.")
-    result = solve(model, layout, problem, free0, **options._asdict())
-    return fitted_blocks(layout, problem, result), result, segments
+
+    def run(prob, start):
+        return solve(model, layout, prob, start, **options._asdict())
+
+    if model.basis is None:
+        result = run(problem, free0)
+        blocks = fitted_blocks(layout, problem, result)
+        return FitOutcome(blocks, result, segments, cost, np.zeros((0, 0)), np.nan, None)
+    fit = fit_sparse(
+        run, problem, free0, layout, model, sparse or SparseOptions(0.01, True), reference
+    )
+    blocks = fitted_blocks(layout, problem, fit.result)
+    return FitOutcome(
+        blocks, fit.result, segments, cost, fit.penalty_scale, fit.gamma_max, fit.reference
+    )
 
 
 def solve(model, layout, problem, free0, *, solver, optimizer, max_iter, tol, verbose):
@@ -227,7 +287,7 @@ def estimate_initial_state(model, blocks, u, z, x0_guess, x0_free, *, max_iter=1
         {k: np.full(np.shape(v), np.inf) for k, v in trial.items()},
     )
     layout = Layout.from_arrays(trial)
-    weights = (0.0, 0.0, 0.0, 0.0, 1.0)
+    weights = CostWeights(0.0, 0.0, 0.0, 0.0, 1.0, output_scale=output_scale([(u, z)]))
     problem, free0 = make_problem(layout, trial, free, bounds, segments, weights)
     if free0.shape[0] == 0:
         return trial["x0"][0]

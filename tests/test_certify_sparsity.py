@@ -14,11 +14,13 @@ import pytest
 
 from sk_offwhite import GreyBoxSparseRegressor, fit_gamma_path
 from sk_offwhite.certify import (
+    Linearisation,
     certify_estimator,
     certify_sparsity,
     estimator_feasible_set,
     feasible_parameter_set,
     linearise_estimator,
+    multistep_relaxation,
     restricted_eigenvalue,
     sparse_relaxation,
 )
@@ -59,6 +61,101 @@ def test_relaxation_recovers_the_true_support(linear_case):
     assert result.selected() == ["phi2", "phi7"]
     assert result.residual_norm <= linear_case["mu"] * (1 + 1e-6)
     np.testing.assert_allclose(result.theta, THETA, atol=0.02)
+
+
+def _incoherent_case(seed, rows=200, features=20, active=3, bound=1e-3):
+    """Gaussian regressors, a 3-sparse omega of order one, noise uniform in +-bound."""
+    rng = np.random.default_rng(seed)
+    xi, phi = rng.normal(size=(rows, 2)), rng.normal(size=(rows, features))
+    support = np.sort(rng.choice(features, active, replace=False))
+    omega = np.zeros(features)
+    omega[support] = rng.choice([-1.0, 1.0], active) * rng.uniform(0.5, 2.0, active)
+    noise = rng.uniform(-bound, bound, rows)
+    return xi, phi, xi @ [1.0, -2.0] + phi @ omega + noise, support, noise
+
+
+def _refit_residual(xi, phi, y, support):
+    """min over theta, omega_S of ||y - xi theta - phi_S omega_S||."""
+    stacked = np.hstack([xi, phi[:, support]])
+    return np.linalg.norm(y - stacked @ np.linalg.lstsq(stacked, y, rcond=None)[0])
+
+
+@pytest.mark.parametrize("factor", [1.0, 1.05])
+def test_pruning_returns_the_exact_support_on_incoherent_problems(factor):
+    """At mu = ||eta|| the l1 solution keeps small spurious terms (1 exact draw in 10
+    without pruning); the pruned support is exact."""
+    exact = 0
+    for seed in range(10):
+        xi, phi, y, support, noise = _incoherent_case(seed)
+        result = sparse_relaxation(xi, phi, y, factor * np.linalg.norm(noise))
+        exact += np.array_equal(np.flatnonzero(result.support), support)
+    assert exact >= 9
+
+
+@pytest.mark.parametrize("normalize", [False, True])
+@pytest.mark.parametrize("prune", [True, False])
+def test_an_all_zero_optimum_has_an_empty_support(linear_case, prune, normalize):
+    xi, phi, _, mu = _args(linear_case)
+    y = linear_case["y"] - phi @ linear_case["omega"]  # physics and noise only
+    result = sparse_relaxation(xi, phi, y, mu, prune=prune, normalize_columns=normalize)
+    assert result.solved and not result.support.any() and result.selected() == []
+    assert np.all(result.omega == 0)
+    assert result.residual_norm <= mu * (1 + 1e-6)
+    assert "support: (empty)" in result.summary()
+
+
+@pytest.mark.parametrize("normalize", [False, True])
+@pytest.mark.parametrize("column", [TRUE_SUPPORT[0], 4])
+def test_a_column_rescaled_by_1e_3_keeps_the_support(linear_case, column, normalize):
+    """True term (coefficient x 1000) or a spurious one: same support, same refit."""
+    xi, phi, y, mu = _args(linear_case)
+    units = np.ones(10)
+    units[column] = 1e-3
+    reference = sparse_relaxation(xi, phi, y, mu)
+    rescaled = sparse_relaxation(xi, phi * units, y, mu, normalize_columns=normalize)
+    np.testing.assert_array_equal(np.flatnonzero(rescaled.support), TRUE_SUPPORT)
+    np.testing.assert_allclose(rescaled.omega * units, reference.omega, rtol=1e-8, atol=0)
+    np.testing.assert_allclose(rescaled.theta, reference.theta, rtol=1e-8)
+
+
+@pytest.mark.parametrize("prune", [True, False])
+@pytest.mark.parametrize("normalize", [False, True])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_residual_norm_is_that_of_the_returned_estimate(seed, normalize, prune):
+    xi, phi, y, _, noise = _incoherent_case(seed)
+    mu = np.linalg.norm(noise)
+    result = sparse_relaxation(xi, phi, y, mu, normalize_columns=normalize, prune=prune)
+    recomputed = np.linalg.norm(y - xi @ result.theta - phi @ result.omega)
+    assert result.residual_norm == pytest.approx(recomputed, rel=1e-12)
+    assert np.all((result.omega != 0) == result.support) and result.pruned is prune
+    if prune:
+        assert result.residual_norm <= mu * (1 + 1e-6)
+        assert "least-squares refit" in result.summary()
+
+
+def test_every_term_of_the_pruned_support_is_needed():
+    """Removing any one term of the result violates the data constraint."""
+    xi, phi, y, _, noise = _incoherent_case(3, active=5)
+    mu = np.linalg.norm(noise)
+    support = np.flatnonzero(sparse_relaxation(xi, phi, y, mu).support)
+    assert _refit_residual(xi, phi, y, support) <= mu
+    for j in support:
+        assert _refit_residual(xi, phi, y, support[support != j]) > mu
+
+
+def test_multistep_relaxation_prunes_like_the_linear_relaxation():
+    """On a given linearisation (no estimator needed) (15) is (10) on (J_theta, J_omega)."""
+    xi, phi, y, _, noise = _incoherent_case(0)
+    lin = Linearisation(
+        xi, phi, y, np.zeros(2), np.zeros(20), y, ("a", "b"), tuple("abcdefghijklmnopqrst"), 2
+    )
+    mu = np.linalg.norm(noise)
+    for prune in (True, False):
+        local = multistep_relaxation(None, None, None, mu, linearisation=lin, prune=prune)
+        linear = sparse_relaxation(xi, phi, y, mu, prune=prune)
+        np.testing.assert_array_equal(local.support, linear.support)
+        np.testing.assert_allclose(local.omega, linear.omega, rtol=1e-9, atol=1e-12)
+        assert local.pruned is prune
 
 
 def test_certificate_holds_on_the_relaxation_support(linear_case):
@@ -215,3 +312,15 @@ def test_vehicle_sfps_contains_the_truth_and_fps_is_unbounded(vehicle_fit):
     assert sfps.solved and sfps.contains(theta_bar)
     fps = estimator_feasible_set(est, None, None, mu, linearisation=lin)
     assert fps.status.startswith("unbounded") and "theta4" in fps.status
+
+
+def test_vehicle_multistep_relaxation_is_pruned_to_the_true_support(vehicle_fit):
+    """Without pruning (15) keeps about 10 of the 12 terms; pruned, the true 3 remain and
+    Theorem 5 certifies them."""
+    data, est, lin, mu = vehicle_fit
+    relaxation = multistep_relaxation(est, None, None, mu, linearisation=lin)
+    assert relaxation.solved, relaxation.status
+    np.testing.assert_array_equal(relaxation.support, data.true_omega.reshape(-1) != 0)
+    assert relaxation.residual_norm <= mu * (1 + 1e-6)
+    cert = certify_estimator(est, None, None, mu, omega_hat=relaxation.omega, linearisation=lin)
+    assert cert.certified is True, cert.summary()

@@ -132,10 +132,7 @@ def _selected(layout: Layout, free: dict, per_block: dict) -> tuple:
 
 
 def _weights(estimator) -> CostWeights:
-    return CostWeights(
-        estimator.gamma, estimator.lam, estimator.nu, estimator.shooting_weight,
-        estimator.l1_smoothing,
-    )  # fmt: skip
+    return estimator._fitted_cost_weights()
 
 
 def local_problem(estimator, u, z, sample_index=None, include_omega: bool = True) -> LocalProblem:

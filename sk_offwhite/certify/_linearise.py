@@ -221,6 +221,7 @@ def multistep_relaxation(
     *,
     support_tol: float = 1e-6,
     normalize_columns: bool = False,
+    prune: bool = True,
     linearisation=None,
 ) -> SparseRelaxation:
     r"""The multi-step relaxation (15), solved on the local linearisation of the fit.
@@ -247,6 +248,14 @@ def multistep_relaxation(
     normalize_columns : bool, default=False
         Weigh each :math:`|\omega_j|` by the norm of its column of :math:`J_\omega` (see
         :func:`~sk_offwhite.certify.sparse_relaxation`).
+    prune : bool, default=True
+        Make the support exact (see :func:`~sk_offwhite.certify.sparse_relaxation`): the
+        candidate terms, in ascending order of :math:`\|J_{\omega,j}\hat\omega_j\|_2`,
+        are removed from :math:`S` while the least-squares refit
+        :math:`\min_{\theta, \omega_{S \setminus j}} \|\tilde z_\ell - J_\theta\theta -
+        J_{\omega, S \setminus j}\,\omega_{S \setminus j}\|_2 \le \mu` stays feasible,
+        and the estimate returned is that refit on the final support (exact zeros
+        elsewhere). ``False`` returns the thresholded :math:`\ell_1` solution.
     linearisation : Linearisation, optional
         Reuse a linearisation computed before (``u`` and ``z`` are then ignored).
 
@@ -255,7 +264,7 @@ def multistep_relaxation(
     SparseRelaxation
     """
     lin = _linearisation(estimator, u, z, linearisation)
-    options = dict(support_tol=support_tol, normalize_columns=normalize_columns)
+    options = dict(support_tol=support_tol, normalize_columns=normalize_columns, prune=prune)
     return solve_relaxation(lin.problem(mu), **options)
 
 

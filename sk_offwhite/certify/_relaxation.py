@@ -25,6 +25,13 @@ Numerics: the :math:`T`-row constraint is compressed exactly with a thin QR fact
 :math:`\|y - Ax\|_2 = \|[Q^\top y - Rx;\ \|y - QQ^\top y\|_2]\|_2`, so every cone has
 :math:`n_\theta + m + 1` entries whatever :math:`T`; the dictionary columns are rescaled to
 unit norm inside the solver (the objective keeps the original :math:`\|\omega\|_1`).
+
+Support: the interior-point solution is never exactly sparse. Terms whose contribution
+:math:`\|\varphi_j\hat\omega_j\|_2` is negligible against the largest one or against
+:math:`\mu` are set to 0 (:func:`support_of`); by default the remaining ones are then
+pruned by backward elimination against the data constraint (:func:`prune_support`) and
+the estimate is the least-squares refit on the final support (:func:`least_squares_refit`),
+so the support is exact and every term in it is needed to fit within :math:`\mu`.
 """
 
 from __future__ import annotations
@@ -213,15 +220,73 @@ def solve_status(prob: cp.Problem) -> str:
     return str(prob.status)
 
 
-def support_of(omega: np.ndarray, scales: np.ndarray, tol: float) -> np.ndarray:
-    r"""Entries whose contribution :math:`|\omega_j|\,\|\varphi_j\|` exceeds ``tol`` x the largest.
+def contributions(problem: LinearProblem, omega: np.ndarray) -> np.ndarray:
+    r"""Size of every term in the data: :math:`c_j = \|\varphi_j\omega_j\|_2 =
+    |\omega_j|\,\|\varphi_j\|_2` (in the units of :math:`y`, whatever those of
+    :math:`\omega_j`)."""
+    return np.abs(omega) * np.linalg.norm(problem.phi, axis=0)
 
-    Interior-point solutions are never exactly sparse; this relative threshold on the
-    column-scaled coefficients separates the support from round-off.
+
+def support_of(contribution: np.ndarray, mu: float, tol: float) -> np.ndarray:
+    r"""Terms whose contribution is not negligible: :math:`c_j > \text{tol}\,
+    \max(\max_k c_k,\ \mu)`.
+
+    Interior-point solutions are never exactly sparse. The threshold is relative twice
+    over, never an absolute coefficient size: to the largest term (round-off of the
+    solver) and to the noise bound :math:`\mu` (a term that moves the residual by less
+    than ``tol`` :math:`\mu` is below anything the data can tell). The second makes an
+    all-zero optimum (:math:`\hat\omega = 0` up to the solver's :math:`10^{-10}`) give
+    an empty support, which a threshold relative to the largest entry alone cannot.
     """
-    contribution = np.abs(omega) * scales
-    top = np.max(contribution, initial=0.0)
-    return contribution > tol * top if top > 0 else np.zeros(omega.shape, bool)
+    return contribution > tol * max(np.max(contribution, initial=0.0), mu)
+
+
+def residual_norm(problem: LinearProblem, theta: np.ndarray, omega: np.ndarray) -> float:
+    r""":math:`\|y - \Phi_\theta\theta - \Phi\omega\|_2`."""
+    return float(np.linalg.norm(problem.y - problem.phi_theta @ theta - problem.phi @ omega))
+
+
+def least_squares_refit(
+    problem: LinearProblem, support: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float]:
+    r"""The debiased estimate on a support: :math:`(\theta, \omega)` and its residual norm.
+
+    .. math::
+
+        (\theta, \omega_S) = \arg\min \|y - \Phi_\theta\theta - \Phi_S\omega_S\|_2,
+        \qquad \omega_{S^c} = 0,
+
+    solved on unit-norm columns (minimum-norm solution when they are dependent, the
+    residual is the least one either way).
+    """
+    columns = np.hstack([problem.phi_theta, problem.phi[:, support]])
+    scales = column_scales(columns)
+    coef = np.linalg.lstsq(columns / scales, problem.y, rcond=None)[0] / scales
+    theta, omega = coef[: problem.n_theta], np.zeros(problem.n_features)
+    omega[support] = coef[problem.n_theta :]
+    return theta, omega, residual_norm(problem, theta, omega)
+
+
+def prune_support(
+    problem: LinearProblem, support: np.ndarray, contribution: np.ndarray
+) -> np.ndarray:
+    r"""Backward elimination: drop every term the data constraint does not need.
+
+    The terms of ``support`` are visited once, in ascending order of ``contribution``;
+    term :math:`j` is removed when the least-squares refit without it is still feasible,
+    :math:`\min_{\theta, \omega_{S \setminus j}} \|y - \Phi_\theta\theta -
+    \Phi_{S \setminus j}\omega_{S \setminus j}\|_2 \le \mu`. A term kept at its
+    visit stays needed at the end (the refit residual only grows as the support
+    shrinks), so no single term of the result can be removed.
+    """
+    support = support.copy()
+    candidates = np.flatnonzero(support)
+    for j in candidates[np.argsort(contribution[candidates], kind="stable")]:
+        trial = support.copy()
+        trial[j] = False
+        if least_squares_refit(problem, trial)[2] <= problem.mu:
+            support = trial
+    return support
 
 
 @dataclass(frozen=True)
@@ -233,16 +298,22 @@ class SparseRelaxation:
     status : str
         cvxpy status (``'optimal'`` is the only one whose numbers are a solution).
     theta, omega : ndarray or None
-        :math:`\hat\theta`, :math:`\hat\omega` (``None`` unless the solve is optimal).
+        :math:`\hat\theta`, :math:`\hat\omega` (``None`` unless the solve is optimal);
+        ``omega`` is exactly 0 off the support. With ``pruned`` they are the
+        least-squares refit on the support, otherwise the :math:`\ell_1` solution.
     support : ndarray of bool or None
         :math:`\mathrm{supp}(\hat\omega)`.
     residual_norm : float or None
-        :math:`\|y - \Phi_\theta\hat\theta - \Phi\hat\omega\|_2`.
+        :math:`\|y - \Phi_\theta\hat\theta - \Phi\hat\omega\|_2` for the returned
+        ``theta`` and ``omega``.
     mu : float
     theta_names, feature_names : tuple of str
     normalize_columns : bool
         Whether the objective was :math:`\sum_j \|\varphi_j\|_2 |\omega_j|` (``omega``
         is in the dictionary's own units either way).
+    pruned : bool
+        Whether the support was pruned and the estimate refitted by least squares
+        (``prune=True`` of :func:`sparse_relaxation`).
     """
 
     status: str
@@ -254,6 +325,7 @@ class SparseRelaxation:
     theta_names: tuple[str, ...] = field(default=())
     feature_names: tuple[str, ...] = field(default=())
     normalize_columns: bool = False
+    pruned: bool = False
 
     @property
     def solved(self) -> bool:
@@ -279,10 +351,11 @@ class SparseRelaxation:
             f"{n} = {v:.6g}" for n, v in zip(self.theta_names, self.theta, strict=True)
         )
         objective = "sum ||phi_j|| |omega_j|" if self.normalize_columns else "||omega||_1"
+        estimate = "pruned, least-squares refit" if self.pruned else "l1 solution"
         return "\n".join(
             [
                 f"Sparse relaxation (10), min {objective}: optimal, "
-                f"|supp| = {int(self.support.sum())}",
+                f"|supp| = {int(self.support.sum())} ({estimate})",
                 f"  support: {terms or '(empty)'}",
                 f"  theta: {theta or '(none)'}",
                 f"  residual norm {self.residual_norm:.6g} <= mu = {self.mu:.6g}",
@@ -290,32 +363,57 @@ class SparseRelaxation:
         )
 
 
-def _relaxation_result(problem, status, theta, omega, tol) -> SparseRelaxation:
+def _estimate(problem, theta, omega, tol, prune):
+    r"""``(theta, omega, support)`` from the solver's :math:`\ell_1` solution: thresholded
+    (:func:`support_of`), or pruned and refitted (:func:`prune_support`,
+    :func:`least_squares_refit`)."""
+    theta_l1 = np.asarray(theta.value, float) if problem.n_theta else np.zeros(0)
+    omega_l1 = np.asarray(omega.value, float)
+    contribution = contributions(problem, omega_l1)
+    support = support_of(contribution, problem.mu, tol)
+    if prune:
+        support = prune_support(problem, support, contribution)
+        return *least_squares_refit(problem, support)[:2], support
+    return theta_l1, np.where(support, omega_l1, 0.0), support
+
+
+def _relaxation_result(problem, status, theta, omega, tol, prune) -> SparseRelaxation:
     names = (problem.theta_names, problem.feature_names)
     if status != cp.OPTIMAL:
         return SparseRelaxation(status, None, None, None, None, problem.mu, *names)
-    omega_hat = np.asarray(omega.value, float)
-    theta_hat = np.asarray(theta.value, float) if problem.n_theta else np.zeros(0)
-    support = support_of(omega_hat, column_scales(problem.phi), tol)
-    omega_hat = np.where(support, omega_hat, 0.0)
-    residual = problem.y - problem.phi_theta @ theta_hat - problem.phi @ omega_hat
-    norm = float(np.linalg.norm(residual))
-    return SparseRelaxation(status, theta_hat, omega_hat, support, norm, problem.mu, *names)
+    theta_hat, omega_hat, support = _estimate(problem, theta, omega, tol, prune)
+    norm = residual_norm(problem, theta_hat, omega_hat)
+    return SparseRelaxation(
+        status, theta_hat, omega_hat, support, norm, problem.mu, *names, pruned=prune
+    )
 
 
 def solve_relaxation(
-    problem: LinearProblem, *, support_tol: float = 1e-6, normalize_columns: bool = False
+    problem: LinearProblem,
+    *,
+    support_tol: float = 1e-6,
+    normalize_columns: bool = False,
+    prune: bool = True,
 ) -> SparseRelaxation:
-    """:func:`sparse_relaxation` on an already validated :class:`LinearProblem`."""
+    r""":func:`sparse_relaxation` on an already validated :class:`LinearProblem`.
+
+    Solves :math:`\min \|\omega\|_1` (or :math:`\sum_j \|\varphi_j\|_2|\omega_j|`
+    with ``normalize_columns``) s.t. :math:`\|y - \Phi_\theta\theta - \Phi\omega\|_2
+    \le \mu`, keeps the terms with :math:`c_j = \|\varphi_j\hat\omega_j\|_2 >`
+    ``support_tol`` :math:`\max(\max_k c_k, \mu)` and, with ``prune``, removes in
+    ascending :math:`c_j` every term whose removal keeps the least-squares refit within
+    :math:`\mu`, then returns that refit on the final support (see
+    :func:`sparse_relaxation` for the details).
+    """
     if normalize_columns:
         scaled, scales = unit_norm_problem(problem)
-        result = solve_relaxation(scaled, support_tol=support_tol)
+        result = solve_relaxation(scaled, support_tol=support_tol, prune=prune)
         omega = None if result.omega is None else result.omega / scales
         return replace(result, omega=omega, normalize_columns=True)
     theta, omega, cone = feasible_region(problem)
     prob = cp.Problem(cp.Minimize(cp.norm(omega, 1)), [cone])
     status = solve_status(prob)
-    return _relaxation_result(problem, status, theta, omega, support_tol)
+    return _relaxation_result(problem, status, theta, omega, support_tol, prune)
 
 
 def sparse_relaxation(
@@ -326,6 +424,7 @@ def sparse_relaxation(
     *,
     support_tol: float = 1e-6,
     normalize_columns: bool = False,
+    prune: bool = True,
     theta_names=None,
     feature_names=None,
 ) -> SparseRelaxation:
@@ -348,21 +447,52 @@ def sparse_relaxation(
     mu : float
         Noise bound :math:`\mu > 0` (Assumption 2: :math:`\|\eta\|_2 \le \mu`).
     support_tol : float, default=1e-6
-        An entry is in the support when :math:`|\hat\omega_j|\,\|\varphi_j\|_2` exceeds
-        ``support_tol`` times the largest such value (entries below are set to 0).
+        Round-off threshold, relative (never an absolute coefficient size). With the
+        contributions :math:`c_j = \|\varphi_j\hat\omega_j\|_2 = |\hat\omega_j|\,
+        \|\varphi_j\|_2` of the :math:`\ell_1` solution, term :math:`j` is a candidate
+        when :math:`c_j >` ``support_tol`` :math:`\cdot \max(\max_k c_k,\ \mu)`; the
+        others are set to exactly 0. The floor ``support_tol`` :math:`\mu` (a term that
+        moves the residual by less than that is negligible against the noise) makes an
+        all-zero optimum return an empty support.
     normalize_columns : bool, default=False
         Minimise :math:`\sum_j \|\varphi_j\|_2\, |\omega_j|` instead of
         :math:`\|\omega\|_1`: the relaxation (10) on the dictionary rescaled to unit-norm
         columns (as pysindy's ``normalize_columns``). The plain :math:`\ell_1` norm favours
         terms with large regressors whatever their role; the weighted one does not depend
         on the units of the dictionary. ``omega`` is returned in the original units.
+    prune : bool, default=True
+        Make the support exact. With a tight :math:`\mu` the :math:`\ell_1` solution
+        carries small spurious terms (measured at :math:`\mu = \|\eta\|_2`: up to
+        :math:`2 \cdot 10^{-5}` of the largest contribution, a few per cent of
+        :math:`\mu`) that the threshold above keeps. With ``prune``,
+        the candidate terms are visited once in ascending order of :math:`c_j`, and term
+        :math:`j` is removed from the current support :math:`S` when the least-squares
+        refit without it still satisfies the data constraint,
+
+        .. math::
+
+            \min_{\theta,\ \omega_{S \setminus j}}
+            \|y - \Phi_\theta\theta - \Phi_{S \setminus j}\omega_{S \setminus j}\|_2
+            \le \mu,
+
+        so a term is kept only if removing it violates the constraint (this holds for
+        every term of the final support, not only at its visit: the refit residual
+        only grows as :math:`S` shrinks). The returned estimate is then the debiased
+        least-squares refit on the final support :math:`S`,
+        :math:`(\hat\theta, \hat\omega_S) = \arg\min \|y - \Phi_\theta\theta -
+        \Phi_S\omega_S\|_2`, :math:`\hat\omega_{S^c} = 0`: its residual is
+        :math:`\le \mu` whenever a term was removed, and otherwise no larger than that of
+        the thresholded :math:`\ell_1` solution (which is a candidate of the same least
+        squares), so it is kept over the latter in every case. ``prune=False`` returns
+        the thresholded :math:`\ell_1` solution itself.
     theta_names, feature_names : sequence of str, optional
         Names for the summary.
 
     Returns
     -------
     SparseRelaxation
-        With ``status`` other than ``'optimal'`` (e.g. ``'infeasible'`` when ``mu`` is below
+        ``residual_norm`` is recomputed for the returned ``theta`` and ``omega``. With
+        ``status`` other than ``'optimal'`` (e.g. ``'infeasible'`` when ``mu`` is below
         the least-squares residual) the numbers are ``None``: a failed solve is never
         reported as a solution.
 
@@ -378,4 +508,5 @@ def sparse_relaxation(
     problem = linear_problem(
         phi_theta, phi, y, mu, theta_names=theta_names, feature_names=feature_names
     )
-    return solve_relaxation(problem, support_tol=support_tol, normalize_columns=normalize_columns)
+    options = dict(support_tol=support_tol, normalize_columns=normalize_columns, prune=prune)
+    return solve_relaxation(problem, **options)

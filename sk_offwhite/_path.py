@@ -1,0 +1,279 @@
+r"""The support path: fits over a grid of :math:`\gamma` relative to :math:`\gamma_{max}`.
+
+For each :math:`\gamma` of a geometric grid from :math:`\gamma_{max}` (the smallest value for
+which the correction is empty) down to :math:`\epsilon\,\gamma_{max}`, the estimator is
+fitted on the whole record and, with ``cv``, on the training part of every fold; each fold's
+fit is scored by simulating its held-out block. The result holds, per :math:`\gamma`, the
+support, the coefficients, the estimation and cross-validated errors: what a person plots
+to choose, and what :func:`fit_gamma_path` chooses from (lowest mean CV error, or the
+sparsest model within one standard error of it).
+"""
+
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass, field
+
+import numpy as np
+from sklearn.base import clone
+from sklearn.model_selection import KFold, check_cv
+
+from ._estimator import GreyBoxSparseRegressor
+
+__all__ = ["GammaPath", "fit_gamma_path", "gamma_grid"]
+
+
+def gamma_grid(gamma_max: float, n_gammas: int = 8, eps: float = 1e-4) -> np.ndarray:
+    r"""Geometric grid :math:`\gamma_{max}\,\epsilon^{k/(n-1)}`, :math:`k = 0, \dots, n-1`.
+
+    As scikit-learn's ``lasso_path`` grid of :math:`\alpha`: decreasing, from the value at
+    which the correction is empty to ``eps`` times it.
+    """
+    if not np.isfinite(gamma_max) or gamma_max <= 0:
+        raise ValueError(
+            f"gamma_max must be finite and > 0, got {gamma_max!r}: the physics explains the "
+            "data exactly or its fit failed, so there is no correction to search for."
+        )
+    if int(n_gammas) < 1 or not 0 < eps < 1:
+        raise ValueError(f"need n_gammas >= 1 and 0 < eps < 1, got {n_gammas!r}, {eps!r}.")
+    return gamma_max * np.logspace(0.0, np.log10(eps), int(n_gammas))
+
+
+def _check_gammas(gammas) -> np.ndarray:
+    values = np.asarray(gammas, dtype=float).reshape(-1)
+    if values.size == 0 or not np.all(np.isfinite(values)) or np.any(values < 0):
+        raise ValueError(f"gammas must be one or more finite values >= 0, got {gammas!r}.")
+    return values
+
+
+@dataclass
+class GammaPath:
+    r"""Fits along a grid of :math:`\gamma` (see :func:`fit_gamma_path`).
+
+    Attributes
+    ----------
+    gammas : ndarray of shape (n_gammas,)
+    gamma_max : float
+        :math:`\gamma_{max}` of the whole record (``nan`` when ``gammas`` were given).
+    coefs : ndarray of shape (n_gammas, n_delta_states, n_features)
+        ``coef_`` of the whole-record fit at each :math:`\gamma`.
+    train_error : ndarray of shape (n_gammas,)
+        RMS free-run simulation error on the whole record from the fitted initial state, in
+        output standard deviations (``nan`` with ``sample_index``).
+    cv_error : ndarray of shape (n_gammas, n_folds) or None
+        RMS simulation error of each fold's held-out block (initial state estimated from
+        its first ``init_window`` samples, which are not scored), in output standard
+        deviations; ``inf`` where the simulation diverged.
+    best_index : int or None
+        The chosen :math:`\gamma` (``None`` without ``cv``).
+    feature_names : list of str
+    estimator : GreyBoxSparseRegressor
+        The estimator passed in, fitted at the chosen :math:`\gamma` (without ``cv``: at
+        the last one).
+    """
+
+    gammas: np.ndarray
+    gamma_max: float
+    coefs: np.ndarray
+    train_error: np.ndarray
+    cv_error: np.ndarray | None
+    best_index: int | None
+    feature_names: list
+    estimator: GreyBoxSparseRegressor = field(repr=False)
+
+    @property
+    def supports(self) -> np.ndarray:
+        """Boolean supports, shape ``(n_gammas, n_delta_states, n_features)``."""
+        return self.coefs != 0
+
+    @property
+    def n_nonzero(self) -> np.ndarray:
+        """Number of terms kept at each :math:`\\gamma`."""
+        return self.supports.reshape(len(self.gammas), -1).sum(axis=1)
+
+    @property
+    def cv_mean(self) -> np.ndarray | None:
+        return None if self.cv_error is None else np.mean(self.cv_error, axis=1)
+
+    @property
+    def cv_std(self) -> np.ndarray | None:
+        return None if self.cv_error is None else np.std(self.cv_error, axis=1)
+
+    @property
+    def best_gamma(self) -> float | None:
+        return None if self.best_index is None else float(self.gammas[self.best_index])
+
+    def selected(self, index: int | None = None) -> list[str]:
+        """``"equation: term"`` names of the support at ``index`` (default: the chosen one)."""
+        index = len(self.gammas) - 1 if index is None and self.best_index is None else index
+        index = self.best_index if index is None else index
+        rows = self.estimator.delta_states_
+        names = self.estimator.physics_.state_names
+        return [
+            f"{names[rows[i]]}: {self.feature_names[j]}"
+            for i, j in zip(*np.nonzero(self.coefs[index]), strict=True)
+        ]
+
+    def summary(self) -> str:
+        """One line per :math:`\\gamma`: terms kept, estimation and CV error, the choice."""
+        lines = [f"{'gamma':>10s} {'terms':>5s} {'train':>9s} {'cv mean':>9s} {'cv std':>9s}"]
+        for k, gamma in enumerate(self.gammas):
+            cv = "" if self.cv_error is None else f" {self.cv_mean[k]:9.4g} {self.cv_std[k]:9.4g}"
+            mark = "  <- chosen" if k == self.best_index else ""
+            line = f"{gamma:10.3g} {self.n_nonzero[k]:5d} {self.train_error[k]:9.4g}{cv}{mark}"
+            lines.append(line)
+        return "\n".join(lines)
+
+
+def _normalised_rmse(est: GreyBoxSparseRegressor, u, z, init_window: int) -> float:
+    """RMS free-run error of one block after ``init_window`` samples, in output stds."""
+    z = np.asarray(z, float).reshape(len(u), -1)
+    with np.errstate(over="ignore", invalid="ignore"):
+        z_init = z[:init_window] if init_window else None
+        simulated = np.asarray(est.predict(u, z_init=z_init)).reshape(z.shape)
+        error = (simulated - z)[init_window:] / est.output_scale_
+        value = float(np.sqrt(np.mean(error**2)))
+    return value if np.isfinite(value) else np.inf
+
+
+def _blocks(index: np.ndarray) -> list[np.ndarray]:
+    """``index`` cut into runs of consecutive integers."""
+    return np.split(index, np.flatnonzero(np.diff(index) != 1) + 1)
+
+
+def _fold_errors(est, u, z, train, test, gammas, init_window) -> np.ndarray:
+    """Held-out error at every :math:`\\gamma` of one fold (fits on ``train`` only)."""
+    errors = []
+    for gamma in gammas:
+        try:
+            est.set_params(gamma=gamma).fit(u[train], z[train], sample_index=train)
+        except ValueError:
+            errors.append(np.inf)
+            continue
+        scores = [_block_error(est, u, z, block, init_window) for block in _blocks(test)]
+        errors.append(float(np.sqrt(np.mean(np.square(scores)))))
+    return np.asarray(errors)
+
+
+def _block_error(est, u, z, block, init_window) -> float:
+    window = min(init_window, len(block) // 2)
+    return _normalised_rmse(est, u[block], z[block], window)
+
+
+def _choose(cv_error: np.ndarray, gammas: np.ndarray, one_standard_error: bool) -> int:
+    """Lowest mean CV error, or the largest :math:`\\gamma` within one standard error."""
+    mean, std = np.mean(cv_error, axis=1), np.std(cv_error, axis=1)
+    if not np.any(np.isfinite(mean)):
+        raise ValueError("every fit of the path diverged on its held-out blocks.")
+    best = int(np.nanargmin(np.where(np.isfinite(mean), mean, np.nan)))
+    if not one_standard_error:
+        return best
+    limit = mean[best] + std[best] / np.sqrt(cv_error.shape[1])
+    within = np.flatnonzero((mean <= limit) & (gammas >= gammas[best]))
+    return int(within[np.argmax(gammas[within])])
+
+
+def _splits(cv, n_samples: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    splitter = check_cv(cv)
+    if isinstance(splitter, KFold) and splitter.shuffle:
+        raise ValueError("cv must keep time order: KFold(shuffle=True) mixes the samples.")
+    return list(splitter.split(np.zeros((n_samples, 1))))
+
+
+def _whole_record_path(est, u, z, gammas, sample_index):
+    """Fit at every :math:`\\gamma` on the whole record; snapshots of the fitted estimator."""
+    snapshots, errors = [], []
+    for gamma in gammas:
+        est.set_params(gamma=gamma).fit(u, z, sample_index=sample_index)
+        est.set_params(warm_start=True)
+        snapshots.append(copy.copy(est))
+        errors.append(_normalised_rmse(est, u, z, 0) if sample_index is None else np.nan)
+    return snapshots, np.asarray(errors)
+
+
+def fit_gamma_path(
+    estimator: GreyBoxSparseRegressor,
+    u,
+    z,
+    gammas=None,
+    *,
+    n_gammas: int = 8,
+    eps: float = 1e-4,
+    cv=None,
+    one_standard_error: bool = False,
+    init_window: int | None = None,
+    sample_index=None,
+) -> GammaPath:
+    r"""Fit ``estimator`` along a grid of :math:`\gamma` and (with ``cv``) choose one.
+
+    The grid is fitted in order, each :math:`\gamma` from the previous one's solution
+    (continuation; the first from the physics-only fit, which is computed once per record,
+    see :mod:`sk_offwhite._sparsity`). Continuation matters: a correction whose terms
+    partly cancel (large weights, small sum) costs much :math:`\ell_1` norm, and a fit
+    started from :math:`\Omega = 0` at a small :math:`\gamma` can settle in another local
+    minimum, while a path that grows the support term by term reaches it.
+
+    Parameters
+    ----------
+    estimator : GreyBoxSparseRegressor
+        With a ``library``; fitted in place, left at the chosen :math:`\gamma`.
+    u, z : array-like
+        One record, as for :meth:`GreyBoxSparseRegressor.fit`.
+    gammas : array-like, default=None
+        The grid. ``None``: :func:`gamma_grid` (``n_gammas`` values from
+        :math:`\gamma_{max}` of the record down to ``eps`` times it).
+    n_gammas : int, default=8
+    eps : float, default=1e-4
+    cv : int or cross-validation splitter, default=None
+        Folds of contiguous blocks (an int means ``KFold(cv)``, unshuffled). ``None``: no
+        selection, the estimator is left at the last :math:`\gamma`.
+    one_standard_error : bool, default=False
+        Choose the largest :math:`\gamma` (the sparsest model) whose mean CV error is
+        within one standard error of the lowest, instead of the lowest.
+    init_window : int, default=None
+        Samples that estimate each held-out block's initial state (not scored); ``None``
+        uses the estimator's rule (``init_window`` or ``min(50, n // 5)``).
+    sample_index : array-like, default=None
+        As for ``fit`` (a jump starts a new record).
+
+    Returns
+    -------
+    GammaPath
+    """
+    if estimator.library is None:
+        raise ValueError("fit_gamma_path needs an estimator with a library (a correction).")
+    estimator._validate_params()
+    u_arr, z_arr = np.asarray(u, float), np.asarray(z, float)
+    if gammas is None:
+        estimator._fit(u_arr, z_arr, sample_index, reference_only=True)
+        values, gamma_max = gamma_grid(estimator.gamma_max_, n_gammas, eps), estimator.gamma_max_
+    else:
+        values, gamma_max = _check_gammas(gammas), np.nan
+    cv_error = None
+    if cv is not None:
+        template, window = clone(estimator), _init_window(estimator, init_window, len(u_arr))
+        folds = [
+            _fold_errors(clone(template), u_arr, z_arr, train, test, values, window)
+            for train, test in _splits(cv, len(u_arr))
+        ]
+        cv_error = np.stack(folds, axis=1)
+    warm_start = estimator.warm_start
+    try:
+        snapshots, train_error = _whole_record_path(estimator, u_arr, z_arr, values, sample_index)
+    finally:
+        estimator.set_params(warm_start=warm_start)
+    best = None if cv_error is None else _choose(cv_error, values, one_standard_error)
+    vars(estimator).update(vars(snapshots[-1 if best is None else best]))
+    estimator.set_params(warm_start=warm_start)
+    coefs = np.stack([snap.coef_ for snap in snapshots])
+    return GammaPath(
+        values, gamma_max, coefs, train_error, cv_error, best, estimator.feature_names_, estimator
+    )
+
+
+def _init_window(estimator, init_window, n_samples: int) -> int:
+    if init_window is not None:
+        return int(init_window)
+    if estimator.init_window is not None:
+        return int(estimator.init_window)
+    return min(50, n_samples // 5)

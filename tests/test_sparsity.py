@@ -1,0 +1,165 @@
+"""The sparse correction: exact zeros, a scale-free penalty, gamma_max and the support path.
+
+The plant is ``x[k+1] = a x + b u + c x^2`` with the quadratic term undeclared: the physics
+is ``a x + b u`` and the dictionary (degree-2 monomials of ``x`` and ``u``) must find
+``x^2`` alone; the linear terms duplicate the physics and must stay out.
+"""
+
+import warnings
+
+import jax.numpy as jnp
+import numpy as np
+import pysindy as ps
+import pytest
+from sklearn.model_selection import KFold
+
+from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel, fit_gamma_path, gamma_grid
+
+TRUE = {"a": 0.8, "b": 0.5, "c": -0.15}
+N_SAMPLES = 300
+
+
+def _plant(n: int, seed: int = 0, noise: float = 0.0):
+    rng = np.random.default_rng(seed)
+    u = np.repeat(rng.uniform(0.0, 1.0, n // 10 + 1), 10)[:n, None]
+    x, states = 0.0, []
+    for u_k in u[:, 0]:
+        states.append(x)
+        x = TRUE["a"] * x + TRUE["b"] * u_k + TRUE["c"] * x**2
+    z = np.asarray(states)[:, None]
+    return u, z + noise * rng.standard_normal(z.shape)
+
+
+def _physics(b_guess: float = 0.3) -> PhysicsModel:
+    def step(x, u, theta):
+        return jnp.stack([theta["a"] * x[0] + theta["b"] * u[0]])
+
+    return PhysicsModel(
+        step, [0], {"a": Parameter(0.5), "b": Parameter(b_guess)}, n_states=1, n_inputs=1
+    )
+
+
+def _estimator(b_guess: float = 0.3, **params) -> GreyBoxSparseRegressor:
+    library = ps.PolynomialLibrary(degree=2)
+    return GreyBoxSparseRegressor(_physics(b_guess), library, max_iter=200, **params)
+
+
+def _quiet(fit, *args, **kwargs):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fit(*args, **kwargs)
+
+
+def _terms(est) -> list[str]:
+    return [n for n, keep in zip(est.feature_names_, est.support_[0], strict=True) if keep]
+
+
+@pytest.fixture(scope="module")
+def record():
+    return _plant(N_SAMPLES)
+
+
+@pytest.fixture(scope="module")
+def fitted(record):
+    return _quiet(_estimator(gamma=1e-3).fit, *record)
+
+
+def test_the_missing_term_alone_with_exact_zeros(fitted):
+    assert _terms(fitted) == ["x1^2"]
+    assert fitted.n_nonzero_ == 1 and np.count_nonzero(fitted.coef_) == 1
+    np.testing.assert_array_equal(fitted.support_, fitted.coef_ != 0)
+    assert fitted.coef_[0, fitted.feature_names_.index("x1^2")] == pytest.approx(TRUE["c"], 1e-6)
+    assert fitted.parameters_["a"] == pytest.approx(TRUE["a"], 1e-6)
+
+
+def test_penalty_scales_and_gamma_max_are_reported(fitted):
+    assert fitted.penalty_scale_.shape == fitted.coef_.shape
+    assert np.all(fitted.penalty_scale_ >= 0) and np.all(np.isfinite(fitted.penalty_scale_))
+    assert 0 < fitted.gamma_max_ < np.inf
+    np.testing.assert_allclose(fitted.output_scale_, [np.std(_plant(N_SAMPLES)[1])])
+
+
+def test_no_correction_above_gamma_max(record, fitted):
+    above = _quiet(_estimator(gamma=1.5 * fitted.gamma_max_).fit, *record)
+    assert above.n_nonzero_ == 0
+    below = _quiet(_estimator(gamma=0.1 * fitted.gamma_max_).fit, *record)
+    assert below.n_nonzero_ >= 1
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1e3])
+def test_rescaled_units_give_the_same_model(record, fitted, scale):
+    u, z = record
+    in_units = _quiet(_estimator(b_guess=0.3 * scale, gamma=1e-3).fit, u, z * scale)
+    np.testing.assert_array_equal(in_units.support_, fitted.support_)
+    assert in_units.score(u, z * scale) == pytest.approx(fitted.score(u, z), abs=1e-3)
+    column = fitted.feature_names_.index("x1^2")
+    assert in_units.coef_[0, column] * scale == pytest.approx(fitted.coef_[0, column], rel=1e-4)
+
+
+def test_rescaled_dictionary_column_gives_the_same_support(record, fitted):
+    library = ps.CustomLibrary(
+        library_functions=[lambda x: x, lambda x: 1e3 * x**2],
+        function_names=[lambda x: x, lambda x: f"1000 {x}^2"],
+    )
+    est = _quiet(GreyBoxSparseRegressor(_physics(), library, gamma=1e-3, max_iter=200).fit, *record)
+    kept = _terms(est)
+    assert kept == ["1000 x1^2"]
+    assert est.coef_[est.support_][0] * 1e3 == pytest.approx(TRUE["c"], rel=1e-6)
+
+
+def test_refit_removes_the_shrinkage(record):
+    biased = _quiet(_estimator(gamma=3e-2, refit=False).fit, *record)
+    debiased = _quiet(_estimator(gamma=3e-2).fit, *record)
+    column = debiased.feature_names_.index("x1^2")
+    assert debiased.coef_[0, column] == pytest.approx(TRUE["c"], rel=1e-6)
+    assert abs(biased.coef_[0, column]) < abs(debiased.coef_[0, column])
+
+
+def test_prune_tol_zero_keeps_the_penalised_weights(record):
+    est = _quiet(_estimator(gamma=1e-3, prune_tol=0.0, refit=False).fit, *record)
+    assert est.n_nonzero_ > 1  # smoothed L1 leaves small weights: pruning is what zeroes them
+
+
+def test_gamma_grid_is_geometric_from_gamma_max():
+    grid = gamma_grid(2.0, n_gammas=5, eps=1e-4)
+    np.testing.assert_allclose(grid, 2.0 * np.logspace(0, -4, 5))
+    with pytest.raises(ValueError, match="gamma_max must be finite and > 0"):
+        gamma_grid(0.0)
+    with pytest.raises(ValueError, match="0 < eps < 1"):
+        gamma_grid(1.0, eps=2.0)
+
+
+@pytest.fixture(scope="module")
+def path():
+    u, z = _plant(N_SAMPLES, seed=1, noise=1e-3)
+    return _quiet(fit_gamma_path, _estimator(), u, z, n_gammas=5, cv=3)
+
+
+def test_path_reports_support_coefficients_and_errors(path):
+    n = len(path.gammas)
+    assert path.coefs.shape == (n, 1, 6) and path.cv_error.shape == (n, 3)
+    assert np.all(np.diff(path.gammas) < 0) and path.gammas[0] == pytest.approx(path.gamma_max)
+    assert path.n_nonzero[0] <= 1 and np.all(np.isfinite(path.train_error))
+    assert "<- chosen" in path.summary()
+
+
+def test_path_chooses_the_true_support_by_cv(path):
+    assert path.selected() == ["x1: x1^2"]
+    est = path.estimator
+    assert est.gamma == path.best_gamma and est.warm_start is False
+    np.testing.assert_array_equal(est.coef_, path.coefs[path.best_index])
+
+
+def test_one_standard_error_prefers_a_sparser_model():
+    u, z = _plant(N_SAMPLES, seed=1, noise=1e-3)
+    sparse = _quiet(fit_gamma_path, _estimator(), u, z, n_gammas=5, cv=3, one_standard_error=True)
+    assert sparse.best_gamma >= sparse.gammas[int(np.argmin(sparse.cv_mean))]
+
+
+def test_path_refuses_shuffled_folds_and_bad_grids(record):
+    with pytest.raises(ValueError, match="cv must keep time order"):
+        fit_gamma_path(_estimator(), *record, gammas=[1e-3], cv=KFold(3, shuffle=True))
+    with pytest.raises(ValueError, match="gammas must be one or more finite values >= 0"):
+        fit_gamma_path(_estimator(), *record, gammas=[np.nan])
+    with pytest.raises(ValueError, match="needs an estimator with a library"):
+        fit_gamma_path(GreyBoxSparseRegressor(_physics()), *record)
