@@ -4,8 +4,11 @@ Run with ``python benchmarks/run_all.py [--quick] [--out reports/benchmarks]``. 
 system (the measured Cascaded Tanks, the vehicle of Section 5.1, and the synthetic systems
 with an undeclared effect) it fits, on the estimation record only:
 
-* sk_offwhite, physics only; physics + sparse δ (γ by 3-fold CV on the estimation record);
-  after the closed loop (:func:`sk_offwhite.loop.close_the_loop`), with and without δ;
+* sk_offwhite, physics only; physics + sparse δ; after the closed loop
+  (:func:`sk_offwhite.loop.close_the_loop`), with and without δ. Every fit with δ runs the
+  support path (:func:`sk_offwhite.fit_gamma_path`) over the default grid of the
+  dimensionless γ relative to γ_max of the record (5 values, 3 with ``--quick``, down to
+  1e-4 γ_max) and chooses γ by 3-fold CV on the estimation record: no γ is set by hand;
 * pysindy ``DiscreteSINDy`` on a delay embedding (STLSQ and SR3; for the tanks also the
   physics-informed square-root library), lags and threshold by the same CV;
 
@@ -22,7 +25,7 @@ import os
 import platform
 import time
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import jax
@@ -56,7 +59,7 @@ LOOP_MODELS = (
 
 @dataclass(frozen=True)
 class Case:
-    """One system: records, declared physics, dictionary, truth and search grids."""
+    """One system: records, declared physics, dictionary, truth and baselines."""
 
     name: str
     u: np.ndarray
@@ -66,7 +69,6 @@ class Case:
     physics: object
     library: object
     truth: dict | None
-    gammas: tuple[float, ...]
     baselines: dict = field(default_factory=dict)
     delta_states: tuple[int, ...] | None = None
 
@@ -89,44 +91,36 @@ def _baselines(quick: bool, sqrt: bool, degree: int = 2, input_lags=(1, 2, 3)) -
     return specs
 
 
-def _scaled(z, factors) -> tuple[float, ...]:
-    return tuple(float(f * np.mean(np.square(z))) for f in factors)
-
-
 def measured_tanks(quick: bool) -> Case:
     """The measured Cascaded Tanks benchmark; eq. (21) with k4 fixed (scale of x1)."""
     d = load_cascaded_tanks()
     physics = cascaded_tanks_physics(fixed={"k4": 0.05})
-    gammas = (1e-4, 1e-3) if quick else (1e-5, 1e-4, 1e-3, 1e-2)
     return Case("Cascaded Tanks (measured)", d.u_est, d.z_est, d.u_val, d.z_val, physics,
-                ps.PolynomialLibrary(degree=2), None, gammas, _baselines(quick, True))  # fmt: skip
+                ps.PolynomialLibrary(degree=2), None, _baselines(quick, True))  # fmt: skip
 
 
 def synthetic_tanks(quick: bool) -> Case:
     """Synthetic tanks with overflow and saturation; k4 fixed at its true value."""
     d = make_cascaded_tanks(n_samples=600 if quick else 1024, random_state=0)
     physics = cascaded_tanks_physics(fixed={"k4": d.true_parameters["k4"]}, x0=[d.z[0, 0]] * 2)
-    gammas = _scaled(d.z, (1e-5, 1e-3) if quick else (1e-6, 1e-5, 1e-4, 1e-3))
     return Case("Tanks, overflow + saturation (synthetic)", d.u, d.z, d.u_val, d.z_val,
-                physics, d.suggested_library, d.true_parameters, gammas,
+                physics, d.suggested_library, d.true_parameters,
                 _baselines(quick, True))  # fmt: skip
 
 
 def vehicle(quick: bool) -> Case:
     """Vehicle lateral dynamics of Section 5.1 with the unmodelled Delta."""
     d = make_vehicle_lateral(n_samples=1000 if quick else 2000, random_state=0)
-    gammas = _scaled(d.z, (1e-9, 1e-7) if quick else (1e-11, 1e-9, 1e-7, 1e-5))
     specs = _baselines(quick, False, degree=3, input_lags=(2, 3))
     return Case("Vehicle lateral (synthetic, §5.1)", d.u, d.z, d.u_val, d.z_val, d.physics,
-                d.suggested_library, d.true_parameters, gammas, specs, (0,))  # fmt: skip
+                d.suggested_library, d.true_parameters, specs, (0,))  # fmt: skip
 
 
 def synthetic(name: str, maker, quick: bool, n_samples: int) -> Case:
     """A ``make_*`` generator's records, declared physics and suggested library."""
     d = maker(n_samples=n_samples // 2 if quick else n_samples, random_state=0)
-    gammas = _scaled(d.z, (1e-5, 1e-3) if quick else (1e-6, 1e-5, 1e-4, 1e-3))
     return Case(name, d.u, d.z, d.u_val, d.z_val, d.physics, d.suggested_library,
-                d.true_parameters, gammas, _baselines(quick, False))  # fmt: skip
+                d.true_parameters, _baselines(quick, False))  # fmt: skip
 
 
 def all_cases(quick: bool) -> list:
@@ -169,7 +163,7 @@ def _row(case, model, est, fit_s, select_s, note="") -> dict:
         model=model,
         **validation_metrics(est, case),
         parameter_error=parameter_error(est, case.truth),
-        support=int(np.count_nonzero(coef)),
+        support=int(getattr(est, "n_nonzero_", np.count_nonzero(coef))),
         n_terms=int(coef.size),
         fit_s=fit_s,
         select_s=select_s,
@@ -184,8 +178,16 @@ def _timed_refit(est, case: Case) -> float:
     return time.perf_counter() - start
 
 
+def gamma_note(path) -> str:
+    """The chosen γ, relative to γ_max, and how it was chosen."""
+    if path is None:
+        return ""
+    relative = path.best_gamma / path.gamma_max
+    return f"γ = {relative:.2g} γ_max (γ_max {path.gamma_max:.2g}; {len(path.gammas)}-value CV)"
+
+
 def run_direct(case: Case, settings: LoopSettings) -> list[dict]:
-    """Physics only and physics + δ without the loop (continuation from the largest γ)."""
+    """Physics only and physics + δ (support path, γ by CV) without the loop."""
     rows = []
     plain = GreyBoxSparseRegressor(case.physics, max_iter=settings.max_iter)
     start = time.perf_counter()
@@ -195,9 +197,18 @@ def run_direct(case: Case, settings: LoopSettings) -> list[dict]:
         case.physics, case.library, delta_states=case.delta_states, max_iter=5 * settings.max_iter
     )
     start = time.perf_counter()
-    fit_gamma_path(est, case.u, case.z, [max(case.gammas), min(case.gammas)])
-    note = f"γ {max(case.gammas):.2g} then {min(case.gammas):.2g} (warm), no CV"
-    rows.append(_row(case, "sk_offwhite physics + δ", est, time.perf_counter() - start, None, note))
+    path = fit_gamma_path(
+        est,
+        case.u,
+        case.z,
+        n_gammas=settings.n_gammas,
+        eps=settings.gamma_eps,
+        cv=settings.n_folds,
+        init_window=settings.init_window,
+    )
+    select_s = time.perf_counter() - start
+    row = _row(case, "sk_offwhite physics + δ", est, _timed_refit(est, case), select_s)
+    rows.append({**row, "note": gamma_note(path)})
     return rows
 
 
@@ -217,16 +228,16 @@ def run_sk_offwhite(case: Case, settings: LoopSettings) -> list[dict]:
 
 def run_loop(case: Case, settings: LoopSettings) -> list[dict]:
     """The four models of :func:`close_the_loop`, each scored on validation."""
-    changes = {"gammas": case.gammas, "delta_states": case.delta_states}
-    settings = LoopSettings(**{**settings.__dict__, **changes})
+    settings = replace(settings, delta_states=case.delta_states)
     start = time.perf_counter()
     result = close_the_loop(case.physics, case.library, case.u, case.z, settings=settings)
     loop_s = time.perf_counter() - start
     effects = ", ".join(e.name for e in result.effects) or "none added"
+    paths = {"with_delta": result.gamma_path, "final_with_delta": result.final_gamma_path}
     rows = []
     for label, key in LOOP_MODELS:
         est = getattr(result, key)
-        notes = [f"γ={est.gamma:.2g}"] if est.library is not None else []
+        notes = [gamma_note(paths[key])] if key in paths else []
         notes += [f"effects: {effects}"] if key.startswith("final") else []
         note = "; ".join(notes)
         rows.append(_row(case, f"sk_offwhite {label}", est, _timed_refit(est, case), loop_s, note))
@@ -339,10 +350,10 @@ def write(rows: list[dict], info: dict, out: Path, quick: bool) -> Path:
 
 
 def loop_settings(quick: bool) -> LoopSettings:
-    """Loop settings of the benchmark (the γ grid is set per system)."""
+    """Loop settings of the benchmark: the default relative γ grid, chosen by 3-fold CV."""
     if quick:
-        return LoopSettings(max_iter=100, max_effects=1)
-    return LoopSettings()
+        return LoopSettings(max_iter=100, max_effects=1, n_gammas=3)
+    return LoopSettings(n_folds=3)
 
 
 def main(argv=None) -> None:

@@ -321,7 +321,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         return tags
 
     def __getstate__(self):
-        state = super().__getstate__()
+        state = dict(super().__getstate__())  # a copy: the live estimator keeps its caches
         state.pop("_compiled", None)
         state.pop("_reference", None)
         return state

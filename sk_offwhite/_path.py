@@ -23,7 +23,7 @@ from ._estimator import GreyBoxSparseRegressor
 __all__ = ["GammaPath", "fit_gamma_path", "gamma_grid"]
 
 
-def gamma_grid(gamma_max: float, n_gammas: int = 8, eps: float = 1e-4) -> np.ndarray:
+def gamma_grid(gamma_max: float, n_gammas: int = 8, eps: float = 1e-6) -> np.ndarray:
     r"""Geometric grid :math:`\gamma_{max}\,\epsilon^{k/(n-1)}`, :math:`k = 0, \dots, n-1`.
 
     As scikit-learn's ``lasso_path`` grid of :math:`\alpha`: decreasing, from the value at
@@ -198,7 +198,7 @@ def fit_gamma_path(
     gammas=None,
     *,
     n_gammas: int = 8,
-    eps: float = 1e-4,
+    eps: float = 1e-6,
     cv=None,
     one_standard_error: bool = False,
     init_window: int | None = None,
@@ -223,7 +223,7 @@ def fit_gamma_path(
         The grid. ``None``: :func:`gamma_grid` (``n_gammas`` values from
         :math:`\gamma_{max}` of the record down to ``eps`` times it).
     n_gammas : int, default=8
-    eps : float, default=1e-4
+    eps : float, default=1e-6
     cv : int or cross-validation splitter, default=None
         Folds of contiguous blocks (an int means ``KFold(cv)``, unshuffled). ``None``: no
         selection, the estimator is left at the last :math:`\gamma`.

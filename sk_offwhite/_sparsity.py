@@ -24,9 +24,11 @@ only in data: which variables are frozen and the weights):
    exact zeros, and shrinks the large ones. Terms are visited in ascending order of their
    contribution :math:`c_{ij} = s_{ij}|\Omega_{ij}|`; a term is removed when its contribution
    is below ``prune_tol`` times the largest, or when zeroing it (with those already removed)
-   raises the fit term :math:`F` by less than ``prune_tol`` (relative). The remaining
-   support is refitted without the penalty; pruning repeats on the refit until the support
-   is stable. This is sequential thresholding with refit (SINDy's STLSQ) on the multi-step
+   does not raise the penalised objective :math:`F + \gamma\sum c_{ij}` (exact absolute
+   values) by more than ``prune_tol`` times :math:`F`: what the term gains in fit does not
+   pay for its penalty. The remaining support is refitted without the penalty; pruning
+   repeats on the refit, now judged on :math:`F` alone (the refit is unpenalised), until the
+   support is stable. This is sequential thresholding with refit (SINDy's STLSQ) on the multi-step
    cost, with thresholds on relative contributions, never on coefficient sizes, so the
    support does not depend on the units of the data or of the dictionary.
 
@@ -171,21 +173,31 @@ def _reference(stage: _Stage, free0) -> SolverResult:
     return stage.run(frozen, start)
 
 
-def _prune(stage: _Stage, free: np.ndarray, scale: np.ndarray, tol: float) -> np.ndarray:
-    """Weights (positions in ``omega_at``) kept after the two pruning rules."""
+def _prune(stage: _Stage, free: np.ndarray, scale: np.ndarray, tol: float, gamma: float):
+    """Weights (positions in ``omega_at``) kept after the two pruning rules.
+
+    The second rule compares the penalised objective :math:`F + \gamma\sum s|\Omega|`
+    (exact absolute values): a term goes when what it gains in fit does not pay for its
+    penalty, up to a slack of ``tol`` times :math:`F`.
+    """
     weights = free[stage.omega_at]
     contribution = scale * np.abs(weights)
     keep = contribution > tol * np.max(contribution, initial=0.0)
     if tol == 0:
         return keep
-    bound = stage.evaluate(free) * (1.0 + tol)
+
+    def objective(values) -> float:
+        return stage.evaluate(values) + gamma * np.sum(scale * np.abs(values[stage.omega_at]))
+
+    fit = stage.evaluate(free)
+    bound = objective(free) + tol * fit
     trial = free.copy()
     trial[stage.omega_at[~keep]] = 0.0
     for j in np.argsort(contribution):
         if not keep[j]:
             continue
         trial[stage.omega_at[j]] = 0.0
-        if stage.evaluate(trial) <= bound:
+        if objective(trial) <= bound:
             keep[j] = False
         else:
             trial[stage.omega_at[j]] = free[stage.omega_at[j]]
@@ -195,9 +207,11 @@ def _prune(stage: _Stage, free: np.ndarray, scale: np.ndarray, tol: float) -> np
 def _prune_and_refit(stage, free, scale, options, results) -> np.ndarray:
     """Stage 3: prune, refit the support without the penalty, until the support is stable."""
     unpenalised = stage.problem.weights._replace(gamma=jnp.asarray(0.0))
+    gamma = float(stage.problem.weights.gamma)
     alive = scale > 0
     for round_ in range(MAX_PRUNE_ROUNDS):
-        keep = _prune(stage, free, scale, options.prune_tol) & alive
+        penalty = gamma if round_ == 0 else 0.0  # after the unpenalised refit: the fit alone
+        keep = _prune(stage, free, scale, options.prune_tol, penalty) & alive
         dropped = np.any(free[stage.omega_at][~keep] != 0.0)
         free = free.copy()
         free[stage.omega_at[~keep]] = 0.0
@@ -283,6 +297,9 @@ def fit_sparse(
     n_fit = int(np.prod(problem.segments.z.shape))
     stage = _Stage(run, problem, omega_at, n_fit, _FitCost(problem, model, layout, n_fit))
     shape = np.shape(problem.omega_free)
+    if omega_at.size == 0:  # every weight masked: the physics alone
+        result = run(problem, free0)
+        return SparseFit(np.asarray(result.free), result, np.zeros(shape), np.nan, None)
     computed = reference is None
     reference = _physics_reference(stage, free0) if computed else reference
     if not np.isfinite(reference.gamma_max):

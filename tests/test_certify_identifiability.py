@@ -120,7 +120,9 @@ def test_linear_model_standard_errors_match_ols(linear_fit):
     assert report.names == ("a", "b")
     np.testing.assert_allclose(report.noise_variance, sigma2, rtol=1e-8)
     np.testing.assert_allclose([report.standard_errors[k] for k in "ab"], expected, rtol=1e-6)
-    np.testing.assert_allclose(report.hessian, 2.0 / n * regressors.T @ regressors, rtol=1e-8)
+    variance = estimator.output_scale_[0] ** 2  # the cost is normalised by the output's variance
+    expected_hessian = 2.0 / (n * variance) * regressors.T @ regressors
+    np.testing.assert_allclose(report.hessian, expected_hessian, rtol=1e-8)
 
 
 def test_linear_model_sensitivity_is_the_least_squares_pseudo_inverse(linear_fit):
@@ -172,12 +174,12 @@ VEHICLE_NOISE = 2e-4
 
 
 def _vehicle_fits(data):
-    """Physics + 12-term dictionary (gamma continuation as tests/test_vehicle.py), physics only."""
-    physics, scale = vehicle_physics_known_registers(data), float(np.mean(data.z**2))
+    """Physics + 12-term dictionary (support path as tests/test_vehicle.py), physics only."""
+    physics = vehicle_physics_known_registers(data)
     with_delta = GreyBoxSparseRegressor(
         physics, data.suggested_library, delta_states=[0], max_iter=500
     )
-    fit_gamma_path(with_delta, data.u, data.z, [1e-7 * scale, 1e-11 * scale])
+    fit_gamma_path(with_delta, data.u, data.z)
     without = GreyBoxSparseRegressor(physics, None, max_iter=500).fit(data.u, data.z)
     return {"with": with_delta, "without": without}
 

@@ -2,8 +2,10 @@ r"""The closed loop: residual -> sparse correction -> named effect -> refit -> b
 
 1. Fit the declared physics (multiple shooting, then the whole record); analyse its
    simulation residual on the estimation record.
-2. Fit the physics plus a sparse correction :math:`\delta`, with :math:`\gamma` chosen by
-   cross-validation on the estimation record; turn the selected terms into hypotheses.
+2. Fit the physics plus a sparse correction :math:`\delta` along the support path
+   (:func:`~sk_offwhite.fit_gamma_path`, a grid relative to :math:`\gamma_{max}`), with
+   :math:`\gamma` chosen by cross-validation on the estimation record; turn the selected
+   terms into hypotheses.
 3. Propose explicit effects from the hypotheses and the measured output range. Fit each
    alone on the estimation record, order them by how much they reduce its simulation error,
    and cross-validate the nested models (the best one, then the best two, ...): effects
@@ -24,10 +26,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from sklearn.model_selection import GridSearchCV, KFold, cross_val_score
+from sklearn.model_selection import KFold, cross_val_score
 
 from .._effects import augment
 from .._estimator import GreyBoxSparseRegressor
+from .._path import GammaPath, fit_gamma_path
 from .._physics import Parameter
 from ..diagnose import analyse_residuals, range_violations
 from ._candidates import propose_effects
@@ -39,8 +42,11 @@ __all__ = ["LoopResult", "LoopSettings", "close_the_loop", "fit_continued", "war
 
 @dataclass(frozen=True)
 class LoopSettings:
-    """Settings of :func:`close_the_loop`, all applied on the estimation record only.
+    r"""Settings of :func:`close_the_loop`, all applied on the estimation record only.
 
+    ``gammas`` is the grid of the (dimensionless) :math:`\gamma`; ``None`` uses
+    ``n_gammas`` values from :math:`\gamma_{max}` down to ``gamma_eps`` times it
+    (:func:`~sk_offwhite.gamma_grid`); a single value is fitted without a search.
     ``horizon`` is the multiple-shooting window of the first stage of every final fit;
     ``cv_horizon`` that of the fits inside cross-validation (``None``: each training block
     is simulated whole, which is what the held-out blocks are scored on). ``min_gain`` is
@@ -51,7 +57,9 @@ class LoopSettings:
     fit and a compilation, so a cap is the way to make a quick run quicker.
     """
 
-    gammas: tuple[float, ...] = (1e-3, 1e-2, 1e-1, 1.0)
+    gammas: tuple[float, ...] | None = None
+    n_gammas: int = 5
+    gamma_eps: float = 1e-6
     n_folds: int = 3
     horizon: int | None = 128
     cv_horizon: int | None = None
@@ -74,7 +82,8 @@ class LoopResult:
 
     ``selection`` holds ``(label, cross-validated RMSE)`` of the declared physics and of
     every nested effect set tried; ``single_fits`` ``(effect name, estimation RMSE)`` of
-    each candidate fitted alone; ``gamma_scores`` the cross-validated RMSE of each γ.
+    each candidate fitted alone; ``gamma_path`` and ``final_gamma_path`` the support paths
+    (:class:`~sk_offwhite.GammaPath`, ``None`` for a single γ) of the two fits with δ.
     """
 
     physics: object
@@ -83,14 +92,14 @@ class LoopResult:
     with_delta: GreyBoxSparseRegressor
     final: GreyBoxSparseRegressor
     final_with_delta: GreyBoxSparseRegressor
-    gamma_scores: dict
+    gamma_path: GammaPath | None
     hypotheses: list
     range_facts: list
     candidates: list
     selection: list = field(default_factory=list)
     effects: tuple = ()
     single_fits: list = field(default_factory=list)
-    final_gamma_scores: dict = field(default_factory=dict)
+    final_gamma_path: GammaPath | None = None
 
 
 def fit_continued(est: GreyBoxSparseRegressor, u, z, horizon):
@@ -143,29 +152,25 @@ def _cv_rmse(est, u, z, settings: LoopSettings) -> float:
 
 
 def _fit_delta(physics, library, u, z, settings):
-    """Physics + δ with γ chosen by CV RMSE, refitted on the whole record.
-
-    With a single γ there is nothing to choose: it is fitted directly and its CV score is
-    reported as ``nan``.
-    """
-    gammas = list(settings.gammas)
+    """Physics + δ on the support path, γ chosen by CV RMSE; the fitted estimator and the
+    path (``None`` for a single γ, fitted directly)."""
     est = _estimator(
         physics, settings, cv=True, library=library, delta_states=settings.delta_states
     )
-    if len(gammas) == 1:
-        est.set_params(gamma=gammas[0], horizon=settings.horizon)
-        return fit_continued(est, u, z, settings.horizon), {gammas[0]: np.nan}
-    search = GridSearchCV(
+    if settings.gammas is not None and len(settings.gammas) == 1:
+        est.set_params(gamma=settings.gammas[0], horizon=settings.horizon)
+        return fit_continued(est, u, z, settings.horizon), None
+    path = fit_gamma_path(
         est,
-        {"gamma": gammas},
+        u,
+        z,
+        settings.gammas,
+        n_gammas=settings.n_gammas,
+        eps=settings.gamma_eps,
         cv=KFold(settings.n_folds),
-        scoring=held_out_rmse(settings.init_window),
+        init_window=settings.init_window,
     )
-    search.fit(u, z, sample_index=np.arange(len(u)))
-    best = search.best_estimator_.set_params(horizon=settings.horizon)
-    best = fit_continued(best, u, z, settings.horizon)
-    scores = dict(zip(gammas, -search.cv_results_["mean_test_score"], strict=True))
-    return best, scores
+    return path.estimator, path
 
 
 def _rmse(outputs, z: np.ndarray) -> float:
@@ -230,7 +235,7 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
     run = baseline.simulate(u)
     output_names = _output_names(physics, z.shape[1])
     facts = range_violations(z, run.outputs, output_names)
-    with_delta, gamma_scores = _fit_delta(start, library, u, z, settings)
+    with_delta, gamma_path = _fit_delta(start, library, u, z, settings)
     hypotheses = form_hypotheses(with_delta, with_delta.simulate(u), u)
     measured = getattr(physics.output, "indices", None)
     candidates = propose_effects(
@@ -248,7 +253,7 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
     )
     augmented = augment(start, *effects)
     final = fit_continued(_estimator(augmented, settings), u, z, settings.horizon)
-    final_delta, final_gammas = _fit_delta(warm_physics(augmented, final), library, u, z, settings)
+    final_delta, final_path = _fit_delta(warm_physics(augmented, final), library, u, z, settings)
     return LoopResult(
         physics,
         augment(physics, *effects),
@@ -256,14 +261,14 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
         with_delta,
         final,
         final_delta,
-        gamma_scores,
+        gamma_path,
         hypotheses,
         facts,
         candidates,
         trail,
         effects,
         singles,
-        final_gammas,
+        final_path,
     )
 
 

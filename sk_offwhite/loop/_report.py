@@ -122,12 +122,20 @@ def _selection_lines(result) -> list[str]:
     return lines + ["", "Effects added:", ""] + (chosen or ["- none improved the CV score"])
 
 
-def _gamma_line(scores: dict, chosen: float) -> str:
-    grid = ", ".join(f"{g:g} → {s:.4f}" for g, s in scores.items())
-    return (
-        f"γ by {len(scores)}-value grid search, cross-validated RMSE on the estimation record: "
-        f"{grid} (chosen γ = {chosen:g})."
-    )
+def _gamma_lines(path, chosen: float) -> list[str]:
+    """The support path as a table, or the single γ fitted."""
+    if path is None:
+        return [f"Single γ = {chosen:g} (no search).", ""]
+    return [
+        f"Support path: γ from γ_max = {path.gamma_max:.4g} down, chosen by "
+        f"{path.cv_error.shape[1]}-fold CV on the estimation record (errors in output "
+        f"standard deviations; chosen γ = {chosen:.4g}):",
+        "",
+        "```",
+        path.summary(),
+        "```",
+        "",
+    ]
 
 
 def _names(result) -> list[str]:
@@ -155,14 +163,14 @@ def write_report(result, rows, records: dict, directory, *, title: str, notes=()
     lines += _residual_section(result, records, "baseline")
     lines += _residual_section(result, records, "final")
     lines += ["## What the sparse correction says", ""]
-    lines += [_gamma_line(result.gamma_scores, result.with_delta.gamma), ""]
+    lines += _gamma_lines(result.gamma_path, result.with_delta.gamma)
     lines += _hypothesis_lines(result)
     lines += ["![correction](correction.png)", ""] if has_delta_fig else []
     lines += ["## Effects tried and added", ""] + _candidate_lines(result) + [""]
     lines += _selection_lines(result) + [""]
     lines += ["## Parameters", ""] + _parameter_lines(result.final, *records["estimation"])
     lines += ["## Remaining correction on the augmented physics", ""]
-    lines += [_gamma_line(result.final_gamma_scores, result.final_with_delta.gamma), ""]
+    lines += _gamma_lines(result.final_gamma_path, result.final_with_delta.gamma)
     lines += [
         f"Non-zero δ terms: {int(result.final_with_delta.support_.sum())} (before: "
         f"{int(result.with_delta.support_.sum())}); Σ|Ω| "

@@ -1,0 +1,117 @@
+"""Sparsity targets: exact supports on the vehicle of Section 5.1, supports in other units.
+
+Sections (all by default, or name some):
+
+* ``vehicle``: ``make_vehicle_lateral`` (T = 2000) for seeds 0-9 without noise and with
+  output noise bound 2e-4; physics + the paper's 12-term dictionary on the yaw equation,
+  gamma from the default grid (8 values from gamma_max down to 1e-6 gamma_max) chosen by
+  3-fold CV on the record (``fit_gamma_path``). Counts the runs whose support is exactly
+  Delta's 3 terms.
+* ``units``: the Cascaded Tanks estimation record with the README's physics (k4 fixed) and
+  a degree-2 polynomial dictionary, in volts and with u, z, the states and the physics
+  rescaled by 1e-3 and 1e3 (the same physics in other units), at one dimensionless gamma
+  (the CV choice in volts): supports and R^2 on the estimation record.
+
+Run: ``python benchmarks/bench_sparsity.py [vehicle] [units] [--seeds N]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+import warnings
+
+import numpy as np
+import pysindy as ps
+
+from sk_offwhite import GreyBoxSparseRegressor, PhysicsModel, fit_gamma_path
+from sk_offwhite.datasets import cascaded_tanks_physics, load_cascaded_tanks, make_vehicle_lateral
+
+NOISE_BOUNDS = (0.0, 2e-4)
+
+
+def vehicle_run(seed: int, noise: float) -> dict:
+    """One vehicle record: the CV-chosen support against Delta's."""
+    data = make_vehicle_lateral(n_samples=2000, noise_bound=noise, random_state=seed)
+    est = GreyBoxSparseRegressor(
+        data.physics, data.suggested_library, delta_states=[0], max_iter=1000
+    )
+    start = time.perf_counter()
+    path = fit_gamma_path(est, data.u, data.z, cv=3)
+    truth = data.true_omega != 0
+    return {
+        "exact": bool(np.array_equal(est.support_[0], truth)),
+        "n_terms": est.n_nonzero_,
+        "gamma_ratio": path.best_gamma / path.gamma_max,
+        "seconds": time.perf_counter() - start,
+    }
+
+
+def vehicle(seeds: int) -> None:
+    for noise in NOISE_BOUNDS:
+        runs = [vehicle_run(seed, noise) for seed in range(seeds)]
+        exact = sum(r["exact"] for r in runs)
+        terms = [r["n_terms"] for r in runs]
+        ratios = ", ".join(f"{r['gamma_ratio']:.1e}" for r in runs)
+        seconds = np.median([r["seconds"] for r in runs])
+        print(
+            f"vehicle, noise bound {noise:g}: exact Delta support in {exact}/{seeds} seeds; "
+            f"terms kept {terms}; chosen gamma/gamma_max [{ratios}]; {seconds:.0f} s per path "
+            "(median)"
+        )
+
+
+def in_units(physics: PhysicsModel, scale: float) -> PhysicsModel:
+    """The same physics for states, inputs and outputs all multiplied by ``scale``."""
+    step = physics.step
+
+    def scaled_step(x, u, theta):
+        return scale * step(x / scale, u / scale, theta)
+
+    lower, upper = physics.x0_bounds
+    return PhysicsModel(
+        scaled_step,
+        list(physics.output.indices),
+        physics.parameters,
+        physics.n_states,
+        physics.n_inputs,
+        x0=scale * np.asarray(physics.x0),
+        x0_bounds=tuple(
+            None if b is None or not np.isfinite(b) else scale * b for b in (lower, upper)
+        ),
+        state_names=physics.state_names,
+        input_names=physics.input_names,
+    )
+
+
+def units() -> None:
+    data = load_cascaded_tanks()
+    physics = cascaded_tanks_physics(fixed={"k4": 0.05})
+    library = ps.PolynomialLibrary(degree=2)
+    chosen = fit_gamma_path(
+        GreyBoxSparseRegressor(physics, library, max_iter=300), data.u_est, data.z_est, cv=3
+    )
+    gamma = chosen.best_gamma
+    print(f"Cascaded Tanks, gamma by 3-fold CV in volts: {gamma:.3g}\n{chosen.summary()}")
+    for scale in (1.0, 1e-3, 1e3):
+        est = GreyBoxSparseRegressor(in_units(physics, scale), library, gamma=gamma, max_iter=300)
+        est.fit(data.u_est * scale, data.z_est * scale)
+        terms = np.flatnonzero(est.support_.ravel()).tolist()
+        r2 = est.score(data.u_est * scale, data.z_est * scale)
+        print(f"scale {scale:g}: {est.n_nonzero_} of {est.coef_.size} terms {terms}, R^2 {r2:.6f}")
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("sections", nargs="*", default=["vehicle", "units"])
+    parser.add_argument("--seeds", type=int, default=10)
+    args = parser.parse_args(argv)
+    warnings.simplefilter("ignore")
+    if "units" in args.sections:
+        units()
+    if "vehicle" in args.sections:
+        vehicle(args.seeds)
+
+
+if __name__ == "__main__":
+    main()
