@@ -174,7 +174,7 @@ def _reference(stage: _Stage, free0) -> SolverResult:
 
 
 def _prune(stage: _Stage, free: np.ndarray, scale: np.ndarray, tol: float, gamma: float):
-    """Weights (positions in ``omega_at``) kept after the two pruning rules.
+    r"""Weights (positions in ``omega_at``) kept after the two pruning rules.
 
     The second rule compares the penalised objective :math:`F + \gamma\sum s|\Omega|`
     (exact absolute values): a term goes when what it gains in fit does not pay for its
