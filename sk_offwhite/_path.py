@@ -12,6 +12,7 @@ sparsest model within one standard error of it).
 from __future__ import annotations
 
 import copy
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -56,7 +57,8 @@ class GammaPath:
     gamma_max : float
         :math:`\gamma_{max}` of the whole record (``nan`` when ``gammas`` were given).
     coefs : ndarray of shape (n_gammas, n_delta_states, n_features)
-        ``coef_`` of the whole-record fit at each :math:`\gamma`.
+        ``coef_`` of the whole-record fit at each :math:`\gamma` (``nan`` where that fit
+        failed: a warning names it and the path goes on).
     train_error : ndarray of shape (n_gammas,)
         RMS free-run simulation error on the whole record from the fitted initial state, in
         output standard deviations (``nan`` with ``sample_index``).
@@ -84,7 +86,7 @@ class GammaPath:
     @property
     def supports(self) -> np.ndarray:
         """Boolean supports, shape ``(n_gammas, n_delta_states, n_features)``."""
-        return self.coefs != 0
+        return np.isfinite(self.coefs) & (self.coefs != 0)
 
     @property
     def n_nonzero(self) -> np.ndarray:
@@ -184,10 +186,18 @@ def _whole_record_path(est, u, z, gammas, sample_index):
     """Fit at every :math:`\\gamma` on the whole record; snapshots of the fitted estimator."""
     snapshots, errors = [], []
     for gamma in gammas:
-        est.set_params(gamma=gamma).fit(u, z, sample_index=sample_index)
+        try:
+            est.set_params(gamma=gamma).fit(u, z, sample_index=sample_index)
+        except ValueError as error:  # the path goes on from the last fit that worked
+            warnings.warn(f"fit_gamma_path: the fit at gamma={gamma:.3g} failed ({error})")
+            snapshots.append(None)
+            errors.append(np.inf)
+            continue
         est.set_params(warm_start=True)
         snapshots.append(copy.copy(est))
         errors.append(_normalised_rmse(est, u, z, 0) if sample_index is None else np.nan)
+    if all(snap is None for snap in snapshots):
+        raise ValueError("fit_gamma_path: the fit failed at every gamma of the path.")
     return snapshots, np.asarray(errors)
 
 
@@ -262,10 +272,15 @@ def fit_gamma_path(
         snapshots, train_error = _whole_record_path(estimator, u_arr, z_arr, values, sample_index)
     finally:
         estimator.set_params(warm_start=warm_start)
+    failed = np.array([snap is None for snap in snapshots])
+    if cv_error is not None:
+        cv_error[failed] = np.inf
     best = None if cv_error is None else _choose(cv_error, values, one_standard_error)
-    vars(estimator).update(vars(snapshots[-1 if best is None else best]))
+    last = int(np.flatnonzero(~failed)[-1])
+    vars(estimator).update(vars(snapshots[last if best is None else best]))
     estimator.set_params(warm_start=warm_start)
-    coefs = np.stack([snap.coef_ for snap in snapshots])
+    shape = estimator.coef_.shape
+    coefs = np.stack([np.full(shape, np.nan) if s is None else s.coef_ for s in snapshots])
     return GammaPath(
         values, gamma_max, coefs, train_error, cv_error, best, estimator.feature_names_, estimator
     )

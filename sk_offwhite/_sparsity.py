@@ -193,6 +193,8 @@ def _prune(stage: _Stage, free: np.ndarray, scale: np.ndarray, tol: float, gamma
     bound = objective(free) + tol * fit
     trial = free.copy()
     trial[stage.omega_at[~keep]] = 0.0
+    if not np.isfinite(stage.evaluate(trial)):  # small terms that keep the model stable
+        keep[:], trial = contribution > 0, free.copy()
     for j in np.argsort(contribution):
         if not keep[j]:
             continue
@@ -220,8 +222,11 @@ def _prune_and_refit(stage, free, scale, options, results) -> np.ndarray:
         problem = stage.problem._replace(
             weights=unpenalised, active=_active(free.shape[0], stage.omega_at[~keep])
         )
-        results.append(stage.run(problem, jnp.asarray(free)))
-        free = np.asarray(results[-1].free, float)
+        refit = stage.run(problem, jnp.asarray(free))
+        if not np.isfinite(refit.cost):
+            break
+        results.append(refit)
+        free = np.asarray(refit.free, float)
     return free
 
 
