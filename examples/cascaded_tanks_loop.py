@@ -30,7 +30,8 @@ def main(argv=None):
     parser.add_argument(
         "--quick",
         action="store_true",
-        help="one (dimensionless) γ, two folds, short fits, three candidates: checks the script runs (for CI), "
+        help="one (dimensionless) γ, two folds, short fits, three candidates: checks the script "
+        "runs (for CI), "
         "not the result",
     )
     args = parser.parse_args(argv)

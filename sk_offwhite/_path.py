@@ -189,7 +189,9 @@ def _whole_record_path(est, u, z, gammas, sample_index):
         try:
             est.set_params(gamma=gamma).fit(u, z, sample_index=sample_index)
         except ValueError as error:  # the path goes on from the last fit that worked
-            warnings.warn(f"fit_gamma_path: the fit at gamma={gamma:.3g} failed ({error})")
+            warnings.warn(
+                f"fit_gamma_path: the fit at gamma={gamma:.3g} failed ({error})", stacklevel=3
+            )
             snapshots.append(None)
             errors.append(np.inf)
             continue

@@ -181,19 +181,28 @@ def _rmse(outputs, z: np.ndarray) -> float:
 
 
 def _rank_alone(physics, candidates, u, z, settings):
-    """``(estimation RMSE, candidate)`` of each candidate added alone, best first.
+    """``(estimation RMSE, candidate, fitted effect parameters)`` of each candidate added
+    alone, best first.
 
     A quick fit ranks them: multiple shooting over ``horizon`` windows only (the whole
-    record when ``horizon`` is ``None``), scored by the free run of the whole record.
+    record when ``horizon`` is ``None``), scored by the free run of the whole record. The
+    effect's fitted parameters start the nested fits, so a threshold (a level, a cap) is
+    not searched again from its first guess.
     """
     ranked = []
     for candidate in candidates:
         try:
             est = _estimator(augment(physics, candidate.effect), settings).fit(u, z)
         except ValueError:  # e.g. the effect's initial guess does not simulate
-            ranked.append((np.inf, candidate))
+            ranked.append((np.inf, candidate, {}))
             continue
-        ranked.append((_rmse(est.predict(u), z), candidate))
+        own = candidate.effect.parameters()
+        fitted = {
+            name: Parameter(est.parameters_[name], spec.bounds)
+            for name, spec in own.items()
+            if not spec.fixed
+        }
+        ranked.append((_rmse(est.predict(u), z), candidate, fitted))
     return sorted(ranked, key=lambda item: item[0])
 
 
@@ -204,19 +213,26 @@ def _smallest_within(scores: list[float], tolerance: float) -> int:
 
 
 def _select_effects(physics, candidates, u, z, settings, base_rmse):
-    """Nested effect sets in the order of their single-fit gain, chosen by CV RMSE."""
+    """Nested effect sets in the order of their single-fit gain, chosen by CV RMSE.
+
+    Returns the chosen effects, the CV trail, the single-fit RMSEs and the effects'
+    parameters as fitted alone (the start of the final fit).
+    """
     ranked = _rank_alone(physics, candidates[: settings.max_candidates], u, z, settings)
-    singles = [(c.effect.name, r) for r, c in ranked]
-    useful = [c.effect for r, c in ranked if r < base_rmse][: settings.max_effects]
+    singles = [(c.effect.name, r) for r, c, _ in ranked]
+    kept = [(c.effect, fitted) for r, c, fitted in ranked if r < base_rmse]
+    useful = [effect for effect, _ in kept][: settings.max_effects]
     trail = [("declared physics", _cv_rmse(_estimator(physics, settings, cv=True), u, z, settings))]
     for k in range(1, len(useful) + 1):
-        model = augment(physics, *useful[:k])
+        warm = {name: p for _, fitted in kept[:k] for name, p in fitted.items()}
+        model = augment(physics, *useful[:k]).with_parameters(**warm)
         score = _cv_rmse(_estimator(model, settings, cv=True), u, z, settings)
         trail.append((" + ".join(e.name for e in useful[:k]), score))
     k = _smallest_within([s for _, s in trail], settings.tolerance)
     if k == 0 or trail[k][1] > (1.0 - settings.min_gain) * trail[0][1]:
-        return (), trail, singles
-    return tuple(useful[:k]), trail, singles
+        return (), trail, singles, {}
+    warm = {name: p for _, fitted in kept[:k] for name, p in fitted.items()}
+    return tuple(useful[:k]), trail, singles, warm
 
 
 def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = None):
@@ -248,10 +264,10 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
         u=u,
         input_names=physics.input_names,
     )
-    effects, trail, singles = _select_effects(
+    effects, trail, singles, warm = _select_effects(
         start, candidates, u, z, settings, _rmse(run.outputs, z)
     )
-    augmented = augment(start, *effects)
+    augmented = augment(start, *effects).with_parameters(**warm)
     final = fit_continued(_estimator(augmented, settings), u, z, settings.horizon)
     final_delta, final_path = _fit_delta(warm_physics(augmented, final), library, u, z, settings)
     return LoopResult(
