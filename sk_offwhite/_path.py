@@ -107,8 +107,8 @@ class GammaPath:
 
     def selected(self, index: int | None = None) -> list[str]:
         """``"equation: term"`` names of the support at ``index`` (default: the chosen one)."""
-        index = len(self.gammas) - 1 if index is None and self.best_index is None else index
-        index = self.best_index if index is None else index
+        if index is None:
+            index = len(self.gammas) - 1 if self.best_index is None else self.best_index
         rows = self.estimator.delta_states_
         names = self.estimator.physics_.state_names
         return [
