@@ -125,10 +125,15 @@ def _evaluate(free, problem, model, layout, forward):
     """Residual, Jacobian and penalised cost at ``free``, the L1 term majorised there."""
     anchor = _omega(free, problem, layout)
     anchored = _anchored(problem, anchor)
-    fun = partial(free_residuals, problem=anchored, model=model, layout=layout)
-    jac, r = (jax.jacfwd if forward else jax.jacrev)(lambda f: (fun(f), fun(f)), has_aux=True)(free)
+    r = free_residuals(free, anchored, model, layout)
+    jac = _jacobian(free, anchored, model, layout, forward)
     constant = majoriser_constant(anchor, problem.omega_free, anchored.weights)
     return r, jac, r @ r + constant, anchor
+
+
+def _jacobian(free, problem, model, layout, forward):
+    fun = partial(free_residuals, problem=problem, model=model, layout=layout)
+    return (jax.jacfwd if forward else jax.jacrev)(fun)(free)
 
 
 @partial(jax.jit, static_argnames=("model", "layout", "forward"))
@@ -155,20 +160,23 @@ def _lm_iteration(state: _LMState, problem, *, model, layout, forward):
     candidate = _lm_trial_step(state, problem)
     anchored = _anchored(problem, state.anchor)
     r_trial = free_residuals(candidate, anchored, model, layout)
-    bound = r_trial @ r_trial + majoriser_constant(
-        state.anchor, problem.omega_free, anchored.weights
+    constant = majoriser_constant(state.anchor, problem.omega_free, anchored.weights)
+    accept = jnp.isfinite(r_trial @ r_trial + constant) & (
+        r_trial @ r_trial + constant < state.cost
     )
-    accept = jnp.isfinite(bound) & (bound < state.cost)
-    moved = jax.lax.cond(
-        accept,
-        lambda: _evaluate(candidate, problem, model, layout, forward),
-        lambda: (state.residual, state.jacobian, state.cost, state.anchor),
-    )
-    residual, jacobian, cost, anchor = moved
     choose = partial(jnp.where, accept)
+    free = choose(candidate, state.free)
+    anchor = _omega(free, problem, layout)
+    moved = _anchored(problem, anchor)
+    residual = free_residuals(free, moved, model, layout)
+    jac = jax.lax.cond(
+        accept,
+        lambda: _jacobian(candidate, moved, model, layout, forward),
+        lambda: state.jacobian,
+    )
+    cost = residual @ residual + majoriser_constant(anchor, problem.omega_free, moved.weights)
     damping = choose(state.damping / 3.0, state.damping * 4.0)
-    new = _LMState(choose(candidate, state.free), residual, jacobian, cost, damping, anchor)
-    return new, accept
+    return _LMState(free, residual, jac, cost, damping, anchor), accept
 
 
 def levenberg_marquardt(
