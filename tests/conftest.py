@@ -41,6 +41,18 @@ def pytest_unconfigure(config):
         shutil.rmtree(CREATED_CACHE, ignore_errors=True)
 
 
+@pytest.fixture(scope="module", autouse=True)
+def _release_compiled_programs():
+    """Drop every compiled program after a module (they reload from the disk cache).
+
+    One worker runs many modules; each fit of a new physics compiles its own programs, and
+    their executable memory maps add up until the kernel's limit on memory maps (65 530
+    here) crashes the compiler.
+    """
+    yield
+    jax.clear_caches()
+
+
 def pytest_collection_modifyitems(items):
     """Run the longest modules first (stable: the order inside a module is kept).
 
