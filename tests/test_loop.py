@@ -126,10 +126,10 @@ def test_max_candidates_caps_the_candidates_fitted(monkeypatch):
 
     monkeypatch.setattr(_loop, "_rank_alone", rank_alone)
     monkeypatch.setattr(_loop, "_cv_rmse", lambda *args: 1.0)
-    effects, trail, _ = _loop._select_effects(
+    effects, trail, _, warm = _loop._select_effects(
         None, ["first", "second", "third"], None, None, LoopSettings(max_candidates=2), 1.0
     )
-    assert fitted == ["first", "second"] and effects == ()
+    assert fitted == ["first", "second"] and effects == () and warm == {}
     assert trail == [("declared physics", 1.0)]
 
 
