@@ -430,10 +430,11 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
             options,
             self._warm_blocks(),
             SparseOptions(self.prune_tol, self.refit, reference_only),
-            self._cached_reference(key := self._reference_key(physics, records)),
+            self._cached_reference(key := self._reference_key(physics, records), physics),
         )
         self._warn_if_unfinished(outcome.result)
-        self._reference = None if outcome.reference is None else (key, outcome.reference)
+        cache = (key, physics, self.library, outcome.reference)
+        self._reference = None if outcome.reference is None else cache
         return outcome
 
     def _reference_key(self, physics, records) -> str:
@@ -451,10 +452,13 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         digest.update(repr(settings).encode())
         return digest.hexdigest()
 
-    def _cached_reference(self, key: str):
-        """The physics-only stage of the previous fit if it had the same data and structure."""
+    def _cached_reference(self, key: str, physics):
+        """The physics-only stage of the previous fit if it had the same data and structure
+        (the same physics and library objects, held so that their ids are not reused)."""
         cached = getattr(self, "_reference", None)
-        return cached[1] if cached is not None and cached[0] == key else None
+        if cached is None or cached[0] != key or cached[2] is not self.library:
+            return None
+        return cached[3] if cached[1] is physics else None
 
     def _warm_blocks(self) -> dict | None:
         """The previous solution as starting blocks (``warm_start``), else ``None``."""
