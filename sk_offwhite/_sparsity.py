@@ -45,6 +45,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
+from ._objective import n_fit_residuals
 from ._optim import Problem, SolverResult, fit_cost, jacobian_columns
 
 __all__ = [
@@ -299,7 +300,7 @@ def fit_sparse(
         When stage 1 does not simulate, its result with ``gamma_max = nan``.
     """
     omega_at, omega_flat = block_columns(layout, np.asarray(problem.free_index), "omega")
-    n_fit = int(np.prod(problem.segments.z.shape))
+    n_fit = n_fit_residuals(problem.segments)
     stage = _Stage(run, problem, omega_at, n_fit, _FitCost(problem, model, layout, n_fit))
     shape = np.shape(problem.omega_free)
     if omega_at.size == 0:  # every weight masked: the physics alone
