@@ -11,6 +11,12 @@ from sk_offwhite.datasets._cascaded_tanks import (
     load_cascaded_tanks,
     safe_sqrt,
 )
+from sk_offwhite.datasets._mechanical import (
+    make_coulomb_drive,
+    make_dead_zone_motor,
+    make_duffing_oscillator,
+    make_pendulum_drag,
+)
 from sk_offwhite.datasets._synthetic import (
     make_cascaded_tanks,
     make_friction_oscillator,
@@ -25,8 +31,12 @@ __all__ = [
     "cascaded_tanks_physics",
     "load_cascaded_tanks",
     "make_cascaded_tanks",
+    "make_coulomb_drive",
+    "make_dead_zone_motor",
+    "make_duffing_oscillator",
     "make_friction_oscillator",
     "make_leaky_tank",
+    "make_pendulum_drag",
     "make_saturating_actuator",
     "make_vehicle_lateral",
     "safe_sqrt",
