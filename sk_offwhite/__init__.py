@@ -2,6 +2,10 @@
 
 from ._basis import RidgeBasis, compile_basis
 from ._effects import (
+    AdditiveEffect,
+    Bias,
+    DeadZone,
+    DictionaryTerm,
     Effect,
     Friction,
     InputSaturation,
@@ -9,6 +13,8 @@ from ._effects import (
     OutputOffset,
     OutputSaturation,
     Overflow,
+    QuadraticDrag,
+    Stiffness,
     augment,
 )
 from ._estimator import GreyBoxSparseRegressor, expected_failed_checks
@@ -16,6 +22,10 @@ from ._path import GammaPath, fit_gamma_path, gamma_grid
 from ._physics import Parameter, PhysicsModel
 
 __all__ = [
+    "AdditiveEffect",
+    "Bias",
+    "DeadZone",
+    "DictionaryTerm",
     "Effect",
     "Friction",
     "GammaPath",
@@ -27,7 +37,9 @@ __all__ = [
     "Overflow",
     "Parameter",
     "PhysicsModel",
+    "QuadraticDrag",
     "RidgeBasis",
+    "Stiffness",
     "augment",
     "compile_basis",
     "expected_failed_checks",

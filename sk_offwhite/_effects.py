@@ -20,10 +20,15 @@ from __future__ import annotations
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 
-from ._physics import Parameter, PhysicsModel
+from ._physics import DiscretizedStep, Parameter, PhysicsModel
 
 __all__ = [
+    "AdditiveEffect",
+    "Bias",
+    "DeadZone",
+    "DictionaryTerm",
     "Effect",
     "Friction",
     "InputSaturation",
@@ -31,8 +36,11 @@ __all__ = [
     "OutputOffset",
     "OutputSaturation",
     "Overflow",
+    "QuadraticDrag",
+    "Stiffness",
     "augment",
     "hinge",
+    "time_step",
 ]
 
 
@@ -67,8 +75,9 @@ class Effect:
         """Return the output after the effect (identity by default)."""
         return z
 
-    def describe(self, state_names, output_names) -> str:
-        """One line in words, naming the variables."""
+    def describe(self, state_names, output_names, values=None) -> str:
+        """One line in words, naming the variables (``values``: fitted parameters, used
+        where they change the wording)."""
         raise NotImplementedError
 
     def _key(self):
@@ -123,12 +132,14 @@ class Overflow(Effect):
             return x_next
         return x_next.at[self.sink].add(theta[f"{self.name}_fraction"] * excess)
 
-    def describe(self, state_names, output_names) -> str:
-        where = (
-            ""
-            if self.sink is None
-            else f", part of the excess flowing into {state_names[self.sink]}"
-        )
+    def describe(self, state_names, output_names, values=None) -> str:
+        fraction = (values or {}).get(f"{self.name}_fraction", self.fraction)
+        where = ""
+        if self.sink is not None and fraction >= 0.01:
+            where = f", a fraction {fraction:.2g} of the excess flowing into "
+            where += state_names[self.sink]
+        elif self.sink is not None:
+            where = ", the excess leaving the system"
         return f"{state_names[self.state]} overflows above a level{where}"
 
 
@@ -158,7 +169,7 @@ class OutputSaturation(Effect):
         excess = hinge(z[self.output] - theta[f"{self.name}_level"], self.sharpness)
         return z.at[self.output].add(-excess)
 
-    def describe(self, state_names, output_names) -> str:
+    def describe(self, state_names, output_names, values=None) -> str:
         return f"the measured {output_names[self.output]} saturates at an upper level"
 
 
@@ -182,7 +193,7 @@ class InputSaturation(Effect):
         level = theta[f"{self.name}_level"]
         return u.at[self.input].set(level * jnp.tanh(u[self.input] / level))
 
-    def describe(self, state_names, output_names) -> str:
+    def describe(self, state_names, output_names, values=None) -> str:
         return "the actuator saturates: the input acts as u_max tanh(u / u_max)"
 
 
@@ -205,12 +216,38 @@ class OutputOffset(Effect):
     def apply_output(self, x, u, z, theta):
         return z.at[self.output].add(theta[f"{self.name}_offset"])
 
-    def describe(self, state_names, output_names) -> str:
+    def describe(self, state_names, output_names, values=None) -> str:
         return f"the sensor of {output_names[self.output]} reads with a constant offset"
 
 
-class Leak(Effect):
-    r"""A loss proportional to the state: :math:`x^+_s \leftarrow x^+_s - c\, x_s`.
+class AdditiveEffect(Effect):
+    r"""A term :math:`g(x, u; \theta_E)` added to the equation of state ``state``.
+
+    For a physics built with :meth:`PhysicsModel.from_ode` the term is added to the
+    right-hand side, :math:`\dot x_s = r_s(x, u) + g`, and integrated with it, so its
+    parameters are rates in the state's units per unit time (per second when the sampling
+    time is in seconds); for a discrete-time physics it is added to :math:`x^+_s` (an
+    increment per sample). Subclasses implement :meth:`term`; ``basis`` (when the term is
+    :math:`p\,b(x, u)`, linear in its one parameter ``p``) lets the loop start ``p`` from
+    a least-squares fit to a correction.
+    """
+
+    state: int
+
+    def term(self, x, u, theta):
+        """The added term (a scalar)."""
+        raise NotImplementedError
+
+    def basis(self, x, u):
+        r""":math:`b(x, u)` of a term :math:`p\,b(x, u)` (numpy rows), else ``None``."""
+        return None
+
+    def apply_state(self, x, u, x_next, theta):
+        return x_next.at[self.state].add(self.term(x, u, theta))
+
+
+class Leak(AdditiveEffect):
+    r"""A loss proportional to the state: :math:`g = -c\, x_s`.
 
     Parameter ``{name}_rate`` (:math:`c \ge 0`).
     """
@@ -221,38 +258,234 @@ class Leak(Effect):
     def parameters(self) -> dict[str, Parameter]:
         return {f"{self.name}_rate": Parameter(self.rate, (0.0, None))}
 
-    def apply_state(self, x, u, x_next, theta):
-        return x_next.at[self.state].add(-theta[f"{self.name}_rate"] * x[self.state])
+    def term(self, x, u, theta):
+        return -theta[f"{self.name}_rate"] * x[self.state]
 
-    def describe(self, state_names, output_names) -> str:
+    def basis(self, x, u):
+        return -x[:, self.state]
+
+    def describe(self, state_names, output_names, values=None) -> str:
         return f"{state_names[self.state]} leaks in proportion to its value"
 
 
-class Friction(Effect):
-    r"""Coulomb friction on a velocity state: :math:`x^+_v \leftarrow x^+_v - F \tanh(\beta x_v)`.
+class Friction(AdditiveEffect):
+    r"""Coulomb (and optionally Stribeck) friction braking a velocity, with a smooth sign.
 
-    Parameter ``{name}_force`` (:math:`F \ge 0`, in state units per sample).
+    .. math::
+
+        g = -\bigl(F_c + F_s e^{-(v/v_s)^2}\bigr) \tanh(v / w),
+
+    :math:`v = x_s` (or ``x[velocity]`` when the friction acts in another state's
+    equation). Parameters ``{name}_coulomb`` (:math:`F_c \ge 0`) and, when
+    ``stribeck_velocity`` (:math:`v_s`) is given, ``{name}_stribeck`` (:math:`F_s \ge 0`).
+    ``width`` (:math:`w`, in the velocity's units) smooths the sign; the loop sets it to
+    1 % of the velocity's RMS on the record, so it follows the data's units.
     """
 
     def __init__(
-        self, state: int, *, force: float = 0.01, sharpness: float = 20.0, name: str = "friction"
+        self,
+        state: int,
+        *,
+        coulomb: float = 0.01,
+        width: float = 0.05,
+        velocity: int | None = None,
+        stribeck_velocity: float | None = None,
+        name: str = "friction",
     ):
-        self.state, self.force, self.sharpness, self.name = (
-            int(state),
-            float(force),
-            float(sharpness),
+        if not width > 0:
+            raise ValueError(f"width must be positive, got {width!r}.")
+        self.state, self.coulomb, self.width = int(state), float(coulomb), float(width)
+        self.velocity = self.state if velocity is None else int(velocity)
+        self.stribeck_velocity = None if stribeck_velocity is None else float(stribeck_velocity)
+        self.name = name
+
+    def parameters(self) -> dict[str, Parameter]:
+        params = {f"{self.name}_coulomb": Parameter(self.coulomb, (0.0, None))}
+        if self.stribeck_velocity is not None:
+            params[f"{self.name}_stribeck"] = Parameter(0.0, (0.0, None))
+        return params
+
+    def term(self, x, u, theta):
+        v = x[self.velocity]
+        level = theta[f"{self.name}_coulomb"]
+        if self.stribeck_velocity is not None:
+            level = level + theta[f"{self.name}_stribeck"] * jnp.exp(
+                -((v / self.stribeck_velocity) ** 2)
+            )
+        return -level * jnp.tanh(v / self.width)
+
+    def basis(self, x, u):
+        if self.stribeck_velocity is not None:
+            return None
+        return -np.tanh(x[:, self.velocity] / self.width)
+
+    def describe(self, state_names, output_names, values=None) -> str:
+        kind = "Coulomb" if self.stribeck_velocity is None else "Coulomb and Stribeck"
+        return f"{state_names[self.velocity]} is braked by a {kind} friction"
+
+
+class Bias(AdditiveEffect):
+    r"""A constant in the equation of state ``state``: :math:`g = b` (a force offset, a
+    constant inflow, a heat source). Parameter ``{name}_value``."""
+
+    def __init__(self, state: int, *, value: float = 0.0, name: str = "bias"):
+        self.state, self.value, self.name = int(state), float(value), name
+
+    def parameters(self) -> dict[str, Parameter]:
+        return {f"{self.name}_value": Parameter(self.value)}
+
+    def term(self, x, u, theta):
+        return theta[f"{self.name}_value"]
+
+    def basis(self, x, u):
+        return np.ones(len(x))
+
+    def describe(self, state_names, output_names, values=None) -> str:
+        return f"the {state_names[self.state]} equation has a constant term (an offset)"
+
+
+class Stiffness(AdditiveEffect):
+    r"""A polynomial restoring term: :math:`g = -k\, q |q|^{p-1}` with :math:`q = x_{position}`.
+
+    ``power`` :math:`p \ge 2` (3: a hardening / softening cubic spring, :math:`k > 0`
+    hardens). Parameter ``{name}_coefficient`` (:math:`k`, either sign).
+    """
+
+    def __init__(
+        self, state: int, position: int, *, power: int = 3, coefficient=0.0, name="stiffness"
+    ):
+        if int(power) < 2:
+            raise ValueError(f"power must be >= 2, got {power!r}.")
+        self.state, self.position, self.power = int(state), int(position), int(power)
+        self.coefficient, self.name = float(coefficient), name
+
+    def parameters(self) -> dict[str, Parameter]:
+        return {f"{self.name}_coefficient": Parameter(self.coefficient)}
+
+    def term(self, x, u, theta):
+        q = x[self.position]
+        return -theta[f"{self.name}_coefficient"] * q * jnp.abs(q) ** (self.power - 1)
+
+    def basis(self, x, u):
+        q = x[:, self.position]
+        return -q * np.abs(q) ** (self.power - 1)
+
+    def describe(self, state_names, output_names, values=None) -> str:
+        return (
+            f"the {state_names[self.state]} equation has a restoring term in "
+            f"{state_names[self.position]}^{self.power} (a nonlinear stiffness)"
+        )
+
+
+class QuadraticDrag(AdditiveEffect):
+    r"""Drag growing with the square of a velocity: :math:`g = -c\, v|v|`, :math:`v = x_s`.
+
+    Parameter ``{name}_coefficient`` (:math:`c \ge 0`).
+    """
+
+    def __init__(self, state: int, *, coefficient: float = 0.0, name: str = "drag"):
+        self.state, self.coefficient, self.name = int(state), float(coefficient), name
+
+    def parameters(self) -> dict[str, Parameter]:
+        return {f"{self.name}_coefficient": Parameter(self.coefficient, (0.0, None))}
+
+    def term(self, x, u, theta):
+        v = x[self.state]
+        return -theta[f"{self.name}_coefficient"] * v * jnp.abs(v)
+
+    def basis(self, x, u):
+        v = x[:, self.state]
+        return -v * np.abs(v)
+
+    def describe(self, state_names, output_names, values=None) -> str:
+        return f"{state_names[self.state]} is braked by a drag in its square"
+
+
+class DeadZone(Effect):
+    r"""Input ``input`` acts only beyond a dead zone of half-width :math:`w`.
+
+    :math:`u_j \leftarrow w\,[\mathrm{sp}(s(u_j/w - 1)) - \mathrm{sp}(s(-u_j/w - 1))]/s`,
+    a smooth :math:`\mathrm{sign}(u)\max(|u| - w, 0)` (:math:`\mathrm{sp}` the softplus,
+    :math:`s` = ``sharpness``, relative to :math:`w`, so the smoothing follows the input's
+    units). Parameter ``{name}_width`` (:math:`w > 0`).
+    """
+
+    target = "input"
+
+    def __init__(self, input: int, width: float, *, sharpness: float = 50.0, name="dead_zone"):
+        if not width > 0:
+            raise ValueError(f"width must be positive, got {width!r}.")
+        self.input, self.width, self.sharpness, self.name = (
+            int(input),
+            float(width),
+            sharpness,
             name,
         )
 
     def parameters(self) -> dict[str, Parameter]:
-        return {f"{self.name}_force": Parameter(self.force, (0.0, None))}
+        return {f"{self.name}_width": Parameter(self.width, (1e-12, None))}
 
-    def apply_state(self, x, u, x_next, theta):
-        force = theta[f"{self.name}_force"] * jnp.tanh(self.sharpness * x[self.state])
-        return x_next.at[self.state].add(-force)
+    def apply_input(self, x, u, theta):
+        width, s = theta[f"{self.name}_width"], self.sharpness
+        ratio = u[self.input] / width
+        inside = jax.nn.softplus(s * (ratio - 1.0)) - jax.nn.softplus(s * (-ratio - 1.0))
+        return u.at[self.input].set(width * inside / s)
 
-    def describe(self, state_names, output_names) -> str:
-        return f"{state_names[self.state]} is braked by a constant (Coulomb) friction"
+    def describe(self, state_names, output_names, values=None) -> str:
+        return "the actuator has a dead zone: inputs smaller than a width do nothing"
+
+
+class DictionaryTerm(AdditiveEffect):
+    r"""A term of the dictionary promoted into the physics: :math:`g = c\,\varphi_j(x, u)`.
+
+    This is how an effect outside the catalogue enters the model: a term of the sparse
+    correction that survives becomes a named parameter ``{name}_coefficient`` (:math:`c`)
+    of the physics, with the physics' time units (see :class:`AdditiveEffect`).
+    ``library`` is the pysindy library, ``input_features`` the names of ``[x; u]`` and
+    ``column`` the index of :math:`\varphi_j` among its features.
+    """
+
+    def __init__(
+        self, state: int, library, input_features, column: int, *, coefficient=0.0, name="term"
+    ):
+        self.state, self.library, self.column = int(state), library, int(column)
+        self.input_features, self.coefficient = tuple(input_features), float(coefficient)
+        self.name = name
+
+    @property
+    def feature(self) -> str:
+        """Name of :math:`\varphi_j`."""
+        return self._compiled().names[self.column]
+
+    def _compiled(self):
+        from ._basis import compile_basis
+
+        return compile_basis(self.library, self.input_features, 1)
+
+    def parameters(self) -> dict[str, Parameter]:
+        return {f"{self.name}_coefficient": Parameter(self.coefficient)}
+
+    def term(self, x, u, theta):
+        basis = self._compiled()
+        phi = basis.evaluate(basis.init_params, jnp.concatenate([x, jnp.atleast_1d(u)]))
+        return theta[f"{self.name}_coefficient"] * phi[0, self.column]
+
+    def basis(self, x, u):
+        from ._basis import evaluate_matrix
+
+        basis = self._compiled()
+        with jax.enable_x64(True):
+            phi = evaluate_matrix(basis, basis.init_params, np.hstack([x, u]))
+        return np.asarray(phi)[:, 0, self.column]
+
+    def describe(self, state_names, output_names, values=None) -> str:
+        return f"the {state_names[self.state]} equation gains a term in {self.feature}"
+
+    def _key(self):
+        from ._basis import _library_key
+
+        library = _library_key(self.library, self.input_features, 1) or id(self.library)
+        return (DictionaryTerm, self.state, library, self.column, self.coefficient, self.name)
 
 
 class AugmentedStep:
@@ -290,6 +523,65 @@ class AugmentedOutput(AugmentedStep):
         return z
 
 
+class AugmentedRhs:
+    """Right-hand side of an augmented continuous-time model: input effects, the declared
+    right-hand side, then the additive terms."""
+
+    def __init__(self, base, effects: tuple[Effect, ...]):
+        self.base, self.effects = base, effects
+        self.__name__ = getattr(base, "__name__", "rhs")
+
+    def __call__(self, x, u, theta):
+        u_seen = u
+        for effect in self.effects:
+            u_seen = effect.apply_input(x, u_seen, theta)
+        rate = jnp.asarray(self.base(x, u_seen, theta), dtype=x.dtype).reshape(x.shape)
+        for effect in self.effects:
+            if isinstance(effect, AdditiveEffect):
+                rate = rate.at[effect.state].add(effect.term(x, u, theta))
+        return rate
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, AugmentedRhs) and (self.base, self.effects) == (
+            other.base,
+            other.effects,
+        )
+
+    def __hash__(self) -> int:
+        return hash((AugmentedRhs, self.base, self.effects))
+
+
+def time_step(physics: PhysicsModel) -> float:
+    """The unit of time of the effects' rates: the sampling time of a physics built with
+    :meth:`PhysicsModel.from_ode`, else 1 (one sample)."""
+    return float(physics.sampling_time) if _continuous(physics) else 1.0
+
+
+def _continuous(physics: PhysicsModel) -> bool:
+    declared = getattr(physics, "declared", (physics.step,))[0]
+    return isinstance(declared, DiscretizedStep)
+
+
+def _in_rhs(effect: Effect) -> bool:
+    return isinstance(effect, AdditiveEffect) or effect.target == "input"
+
+
+def _step(declared_step, effects: tuple[Effect, ...]):
+    """The augmented step: additive and input effects inside the integrated right-hand
+    side of a continuous-time model, the others after the step."""
+    after = effects
+    if isinstance(declared_step, DiscretizedStep):
+        inside = tuple(e for e in effects if _in_rhs(e))
+        after = tuple(e for e in effects if not _in_rhs(e))
+        if inside:
+            rhs = AugmentedRhs(declared_step.rhs, inside)
+            sampling_time = declared_step.dt * declared_step.n_substeps
+            declared_step = DiscretizedStep(
+                rhs, sampling_time, declared_step.method, declared_step.n_substeps
+            )
+    return AugmentedStep(declared_step, after) if after else declared_step
+
+
 def _merged_parameters(physics: PhysicsModel, effects) -> dict[str, Parameter]:
     parameters = dict(physics.parameters)
     for effect in effects:
@@ -312,7 +604,10 @@ def augment(physics: PhysicsModel, *effects: Effect) -> PhysicsModel:
         The declared model; it is not modified.
     *effects : Effect
         Effects applied in order after the declared step (state effects) and output map
-        (output effects). Their parameters are appended to the model's, by name.
+        (output effects); for a physics built with :meth:`PhysicsModel.from_ode`, input
+        effects and :class:`AdditiveEffect` terms act inside the integrated right-hand
+        side instead. Their parameters are appended to the model's, by name. Augmenting
+        an augmented model adds to its effects.
 
     Returns
     -------
@@ -322,12 +617,15 @@ def augment(physics: PhysicsModel, *effects: Effect) -> PhysicsModel:
     for effect in effects:
         if not isinstance(effect, Effect):
             raise TypeError(f"effects must be Effect instances, got {effect!r}.")
-    states = tuple(e for e in effects if e.target in ("input", "state"))
-    outputs = tuple(e for e in effects if e.target == "output")
+    declared = getattr(physics, "declared", (physics.step, physics.output))
+    everything = tuple(getattr(physics, "effects", ())) + tuple(effects)
+    states = tuple(e for e in everything if e.target in ("input", "state"))
+    outputs = tuple(e for e in everything if e.target == "output")
     model = PhysicsModel.__new__(PhysicsModel)
     model.__dict__.update(physics.__dict__)
-    model.step = AugmentedStep(physics.step, states) if states else physics.step
-    model.output = AugmentedOutput(physics.output, outputs) if outputs else physics.output
+    model.declared = declared
+    model.step = _step(declared[0], states) if states else declared[0]
+    model.output = AugmentedOutput(declared[1], outputs) if outputs else declared[1]
     model.parameters = _merged_parameters(physics, effects)
-    model.effects = tuple(getattr(physics, "effects", ())) + tuple(effects)
+    model.effects = everything
     return model

@@ -206,6 +206,11 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     gamma_max_ : float
         Smallest ``gamma`` for which :math:`\Omega = 0` is optimal (``nan`` without a
         library).
+    term_gain_, term_absorbed_, term_estimate_ : ndarray of shape (n_delta, n_features)
+        What each dictionary term could explain at the physics-only fit once the physics
+        re-adjusts (first order): the fraction of the cost it removes alone, the fraction
+        of its effect the physics already produces, and its linearised weight
+        (:class:`~sk_offwhite._sparsity.TermEvidence`); ``nan`` without a library.
     output_scale_ : ndarray of shape (n_outputs,)
         :math:`\sigma_o` of the training data.
     feature_names_ : list of str
@@ -500,6 +505,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         self.n_nonzero_ = int(np.sum(self.support_))
         self.penalty_scale_ = np.asarray(outcome.penalty_scale, float)
         self.gamma_max_ = float(outcome.gamma_max)
+        self._store_evidence(outcome.evidence, omega.shape)
         self.output_scale_ = np.asarray(outcome.weights.output_scale, float)
         self._state_scale = np.asarray(outcome.weights.state_scale, float)
         self.feature_names_ = [] if basis is None else list(basis.names)
@@ -509,6 +515,12 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         self.cost_, self.n_iter_ = float(result.cost), int(result.n_iter)
         self.converged_, self.solver_message_ = bool(result.converged), result.message
         self._compiled = (basis, model)
+
+    def _store_evidence(self, evidence, shape) -> None:
+        """``term_gain_``, ``term_absorbed_``, ``term_estimate_`` (nan without evidence)."""
+        names = ("term_gain_", "term_absorbed_", "term_estimate_")
+        for name, values in zip(names, evidence or (None,) * 3, strict=True):
+            setattr(self, name, np.full(shape, np.nan) if values is None else np.asarray(values))
 
     # ------------------------------------------------------------------ predict / score
     def _fitted_model(self):

@@ -21,6 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from ._kinds import check_kinds
+
 __all__ = ["DiscretizedStep", "MeasuredStates", "Parameter", "PhysicsModel"]
 
 StepFn = Callable[[Any, Any, Mapping[str, Any]], Any]
@@ -140,6 +142,12 @@ class PhysicsModel:
         ``p(x, u, theta) -> array`` that should stay ``<= 0`` along the trajectory.
     equality : callable, default=None
         ``q(x, u, theta) -> array`` that should stay ``== 0`` along the trajectory.
+    state_kinds, input_kinds : sequence of str, default=None
+        Physical kind of each state and input, one of
+        :data:`~sk_offwhite._kinds.KINDS` (``"level"``, ``"position"``, ``"velocity"``,
+        ``"angle"``, ``"rate"``, ``"force"``, ``"torque"``, ``"flow"``, ``"voltage"``,
+        ``"current"``, ``"temperature"``, ``"generic"``); ``None``: all ``"generic"``. The
+        closed loop proposes only the missing effects that make sense for a kind.
     """
 
     def __init__(
@@ -158,6 +166,8 @@ class PhysicsModel:
         output_names: Sequence[str] | None = None,
         inequality: StepFn | None = None,
         equality: StepFn | None = None,
+        state_kinds: Sequence[str] | None = None,
+        input_kinds: Sequence[str] | None = None,
     ):
         if not callable(step):
             raise TypeError("step must be callable as step(x, u, theta).")
@@ -178,6 +188,8 @@ class PhysicsModel:
         self.output_names = tuple(output_names) if output_names is not None else None
         self.inequality = inequality
         self.equality = equality
+        self.state_kinds = check_kinds("state_kinds", state_kinds, self.n_states)
+        self.input_kinds = check_kinds("input_kinds", input_kinds, self.n_inputs)
 
     @classmethod
     def from_ode(

@@ -182,7 +182,8 @@ class FitOutcome(NamedTuple):
     ``penalty_scale`` (shape of :math:`\Omega`, empty without a dictionary) and
     ``gamma_max`` are those of :mod:`~sk_offwhite._sparsity`; ``weights`` the
     :class:`CostWeights` with the data's scales; ``reference`` the physics-only stage, to
-    reuse (``None`` without a dictionary).
+    reuse (``None`` without a dictionary); ``evidence`` its
+    :class:`~sk_offwhite._sparsity.TermEvidence` in the shape of :math:`\Omega`.
     """
 
     blocks: dict
@@ -192,6 +193,7 @@ class FitOutcome(NamedTuple):
     penalty_scale: np.ndarray
     gamma_max: float
     reference: object
+    evidence: object = None
 
 
 def scaled_weights(weights, records, window_starts) -> CostWeights:
@@ -248,7 +250,14 @@ def fit_records(
     )
     blocks = fitted_blocks(layout, problem, fit.result)
     return FitOutcome(
-        blocks, fit.result, segments, cost, fit.penalty_scale, fit.gamma_max, fit.reference
+        blocks,
+        fit.result,
+        segments,
+        cost,
+        fit.penalty_scale,
+        fit.gamma_max,
+        fit.reference,
+        fit.evidence,
     )
 
 

@@ -52,11 +52,13 @@ __all__ = [
     "Reference",
     "SparseFit",
     "SparseOptions",
+    "TermEvidence",
     "block_columns",
     "fit_sparse",
     "output_scale",
     "penalty_scale",
     "state_scale",
+    "term_evidence",
 ]
 
 MAX_PRUNE_ROUNDS = 3
@@ -74,8 +76,67 @@ class SparseOptions(NamedTuple):
     reference_only: bool = False
 
 
+class TermEvidence(NamedTuple):
+    r"""What each dictionary term could explain that the physics cannot (first order).
+
+    With :math:`r` the residual of the physics-only fit, :math:`J_\theta` the Jacobian
+    columns of every other free variable (parameters, initial states) and
+    :math:`P_\perp` the projector onto their orthogonal complement,
+    :math:`\tilde J_{ij} = P_\perp J_{ij}` is the part of term :math:`ij`'s effect on the
+    simulated output that no re-adjustment of the physics can mimic. Then
+
+    .. math::
+
+        \text{gain}_{ij} = \frac{(r^\top \tilde J_{ij})^2}{\|\tilde J_{ij}\|^2\,\|r\|^2},
+        \quad
+        \text{absorbed}_{ij} = 1 - \frac{\|\tilde J_{ij}\|^2}{\|J_{ij}\|^2},
+        \quad
+        \hat\Omega_{ij} = -\frac{r^\top \tilde J_{ij}}{\|\tilde J_{ij}\|^2},
+
+    the fraction of the cost the term removes alone once the physics re-adjusts, the
+    fraction of its effect the physics parameters already produce (a term that only
+    re-parametrises the physics has ``absorbed`` near 1 and ``gain`` 0) and its
+    linearised weight. All three are dimensionless or in the weight's own units, and do
+    not depend on the units of the data (the paper's :math:`\Upsilon` projection, §4).
+    """
+
+    gain: np.ndarray
+    absorbed: np.ndarray
+    estimate: np.ndarray
+
+
+ABSORBED = 1.0 - 1e-6
+"""A term whose effect the physics reproduces to this fraction carries no evidence."""
+
+
+def term_evidence(residual, physics_columns, omega_columns) -> TermEvidence:
+    """:class:`TermEvidence` from the residual and the Jacobian columns (numpy)."""
+    residual = np.asarray(residual, float)
+    basis = _column_space(np.asarray(physics_columns, float))
+    projected = omega_columns - basis @ (basis.T @ omega_columns)
+    full = np.sum(omega_columns**2, axis=0)
+    left = np.sum(projected**2, axis=0)
+    absorbed = np.divide(full - left, full, out=np.ones_like(full), where=full > 0)
+    usable = absorbed < ABSORBED
+    inner = residual @ projected
+    total = max(float(residual @ residual), 1e-300)
+    safe = np.where(usable, left, 1.0)
+    gain = np.where(usable, inner**2 / safe / total, 0.0)
+    estimate = np.where(usable, -inner / safe, 0.0)
+    return TermEvidence(gain, np.clip(absorbed, 0.0, 1.0), estimate)
+
+
+def _column_space(columns: np.ndarray, rtol: float = 1e-10) -> np.ndarray:
+    """Orthonormal basis of the span of ``columns`` (rank-revealing SVD)."""
+    if columns.size == 0:
+        return np.zeros((columns.shape[0], 0))
+    u, s, _ = np.linalg.svd(columns, full_matrices=False)
+    return u[:, s > rtol * max(float(s[0]), 1e-300)]
+
+
 class Reference(NamedTuple):
-    r"""The physics-only stage: its solution, the penalty scales and :math:`\gamma_{max}`.
+    r"""The physics-only stage: its solution, the penalty scales, :math:`\gamma_{max}` and
+    the terms' :class:`TermEvidence`.
 
     It depends on the data and the structure only, not on :math:`\gamma` or the pruning
     settings, so a path of fits over :math:`\gamma` computes it once.
@@ -84,16 +145,36 @@ class Reference(NamedTuple):
     result: SolverResult
     scale: np.ndarray
     gamma_max: float
+    evidence: TermEvidence | None = None
 
 
 class SparseFit(NamedTuple):
-    """Outcome of :func:`fit_sparse` (numpy)."""
+    r"""Outcome of :func:`fit_sparse` (numpy); ``penalty_scale`` and ``evidence`` have the
+    shape of :math:`\Omega` (masked weights: scale 0, no evidence)."""
 
     free: np.ndarray
     result: SolverResult
     penalty_scale: np.ndarray
     gamma_max: float
     reference: Reference | None
+    evidence: TermEvidence | None = None
+
+
+def _full(values: np.ndarray, omega_flat: np.ndarray, shape, fill: float) -> np.ndarray:
+    r"""``values`` of the free weights placed in an array of the shape of :math:`\Omega`."""
+    full = np.full(int(np.prod(shape)), fill)
+    full[omega_flat] = values
+    return full.reshape(shape)
+
+
+def _full_evidence(evidence: TermEvidence | None, omega_flat, shape) -> TermEvidence | None:
+    if evidence is None:
+        return None
+    gain, absorbed, estimate = (
+        _full(np.asarray(values), omega_flat, shape, fill)
+        for values, fill in zip(evidence, (0.0, 1.0, 0.0), strict=True)
+    )
+    return TermEvidence(gain, absorbed, estimate)
 
 
 def _robust_scale(spread: np.ndarray, level: np.ndarray) -> np.ndarray:
@@ -237,15 +318,19 @@ def _physics_reference(stage: _Stage, free0) -> Reference:
     result = _reference(stage, free0)
     if not np.isfinite(result.cost):
         return Reference(result, np.zeros(stage.omega_at.shape[0]), np.nan)
+    others = np.setdiff1d(np.flatnonzero(np.asarray(stage.problem.active) > 0), stage.omega_at)
     residual, columns = jacobian_columns(
         jnp.asarray(result.free),
         stage.problem,
-        jnp.asarray(stage.omega_at),
+        jnp.asarray(np.concatenate([stage.omega_at, others])),
         model=stage.evaluate.model,
         layout=stage.evaluate.layout,
     )
-    scale, gamma_max = penalty_scale(np.asarray(residual), np.asarray(columns), stage.n_fit)
-    return Reference(result, scale, gamma_max)
+    residual, columns = np.asarray(residual), np.asarray(columns)
+    n_omega = stage.omega_at.shape[0]
+    scale, gamma_max = penalty_scale(residual, columns[:, :n_omega], stage.n_fit)
+    evidence = term_evidence(residual, columns[:, n_omega:], columns[:, :n_omega])
+    return Reference(result, scale, gamma_max, evidence)
 
 
 def _penalised_problem(problem: Problem, omega_flat, scale, n_free, dead) -> Problem:
@@ -311,12 +396,13 @@ def fit_sparse(
     if not np.isfinite(reference.gamma_max):
         return SparseFit(reference.result.free, reference.result, np.ones(shape), np.nan, None)
     scale = reference.scale
-    final_scale = np.zeros(int(np.prod(shape)))
-    final_scale[omega_flat] = scale
-    final_scale = final_scale.reshape(shape)
+    final_scale = _full(scale, omega_flat, shape, 0.0)
+    evidence = _full_evidence(reference.evidence, omega_flat, shape)
     if options.reference_only:
         free = np.asarray(reference.result.free, float)
-        return SparseFit(free, reference.result, final_scale, reference.gamma_max, reference)
+        return SparseFit(
+            free, reference.result, final_scale, reference.gamma_max, reference, evidence
+        )
     warm = np.any(np.asarray(free0)[omega_at] != 0.0)
     dead = omega_at[scale == 0]
     start = jnp.asarray(free0 if warm else reference.result.free).at[dead].set(0.0)
@@ -326,4 +412,4 @@ def fit_sparse(
     stage = stage._replace(problem=penalised)
     free = _prune_and_refit(stage, np.asarray(results[-1].free, float), scale, options, results)
     result = _combine(results, free)
-    return SparseFit(free, result, final_scale, reference.gamma_max, reference)
+    return SparseFit(free, result, final_scale, reference.gamma_max, reference, evidence)

@@ -62,7 +62,7 @@ def test_output_saturation_leak_and_friction_act_as_described():
         tanks_physics(),
         OutputSaturation(0, 3.0, sharpness=1e4),
         Leak(0, rate=0.1),
-        Friction(1, force=0.2, sharpness=1e3),
+        Friction(1, coulomb=0.2, width=1e-3),
     )
     x, u = jnp.array([4.0, 5.0]), jnp.array([1.0])
     theta = _theta(physics)

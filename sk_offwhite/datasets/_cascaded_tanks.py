@@ -211,6 +211,8 @@ def cascaded_tanks_physics(
         state_names=("x1", "x2"),
         input_names=("u",),
         output_names=("x2",),
+        state_kinds=("level", "level"),
+        input_kinds=("voltage",),
     )
 
 

@@ -408,7 +408,7 @@ def _actuator_effect(x, u, b, umax, dt):
     return (dt * b * (umax * np.tanh(u[..., 0] / umax) - u[..., 0]))[..., None]
 
 
-def _first_order_physics(rhs, values, x0, dt, names) -> PhysicsModel:
+def _first_order_physics(rhs, values, x0, dt, names, kinds=None) -> PhysicsModel:
     return PhysicsModel.from_ode(
         rhs,
         dt,
@@ -421,11 +421,15 @@ def _first_order_physics(rhs, values, x0, dt, names) -> PhysicsModel:
         state_names=names[:1],
         input_names=names[1:],
         output_names=names[:1],
+        state_kinds=None if kinds is None else kinds[:1],
+        input_kinds=None if kinds is None else kinds[1:],
     )
 
 
 def _motor_physics(values: dict, x0) -> PhysicsModel:
-    return _first_order_physics(motor_rhs, values, x0, ACTUATOR_DT, ("omega", "u"))
+    return _first_order_physics(
+        motor_rhs, values, x0, ACTUATOR_DT, ("omega", "u"), ("rate", "voltage")
+    )
 
 
 def _actuator_library():
@@ -523,7 +527,7 @@ def _leak_effect(x, u, c, dt):
 
 
 def _tank_physics(values: dict, x0) -> PhysicsModel:
-    return _first_order_physics(tank_rhs, values, x0, LEAKY_DT, ("x", "u"))
+    return _first_order_physics(tank_rhs, values, x0, LEAKY_DT, ("x", "u"), ("level", "flow"))
 
 
 def _leaky_library():

@@ -285,4 +285,6 @@ def tanks_effects_physics(
         state_names=("x1", "x2"),
         input_names=("u",),
         output_names=("x2",),
+        state_kinds=("level", "level"),
+        input_kinds=("voltage",),
     )
