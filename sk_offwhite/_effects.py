@@ -460,7 +460,8 @@ class DictionaryTerm(AdditiveEffect):
     def _compiled(self):
         from ._basis import compile_basis
 
-        return compile_basis(self.library, self.input_features, 1)
+        with jax.ensure_compile_time_eval():  # compiled eagerly, also when called in a trace
+            return compile_basis(self.library, self.input_features, 1)
 
     def parameters(self) -> dict[str, Parameter]:
         return {f"{self.name}_coefficient": Parameter(self.coefficient)}

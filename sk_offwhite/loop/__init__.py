@@ -6,8 +6,8 @@ with its figures. The pieces (:func:`form_hypotheses`, :func:`propose_effects`) 
 their own.
 """
 
-from ._candidates import Candidate, propose_effects
-from ._hypotheses import Hypothesis, Term, form_hypotheses, rank_terms
+from ._candidates import Candidate, promoted_terms, propose_effects
+from ._hypotheses import Hypothesis, Term, evidence_hypotheses, form_hypotheses, rank_terms
 from ._loop import (
     LoopResult,
     LoopSettings,
@@ -28,8 +28,10 @@ __all__ = [
     "analyse_model",
     "close_the_loop",
     "fit_continued",
+    "evidence_hypotheses",
     "form_hypotheses",
     "held_out_rmse",
+    "promoted_terms",
     "propose_effects",
     "rank_terms",
     "score_models",

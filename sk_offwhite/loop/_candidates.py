@@ -1,20 +1,37 @@
-"""Explicit effects proposed by the hypotheses and by the measured output range.
+r"""Explicit effects proposed by the hypotheses and by the measured output range.
 
-Each hypothesis "equation ``i`` lacks a term that removes / adds ``x_i``" and each measured
-ceiling of an output becomes one or more :class:`~sk_offwhite.Effect` instances with
-initial values read off the data (levels in the scale of the fitted baseline's simulated
-states). Candidates are identified by the effect's name, so a cause proposed twice (an
-overflow of ``x1`` into ``x2`` explains both a loss of ``x1`` and a gain of ``x2``) is
-tried once.
+Each hypothesis "equation ``i`` lacks a term in ... that removes / adds ``x_i``" and each
+measured ceiling of an output becomes one or more :class:`~sk_offwhite.Effect` instances,
+only where they make physical sense for the variables' kinds
+(:func:`~sk_offwhite._kinds.physical_kinds`):
+
+* levels (and one-signed generic states): overflows, leaks, caps;
+* velocities and rates: Coulomb friction, quadratic drag (velocities), a polynomial
+  stiffness in the kinematic partner (the position), a constant (a force offset);
+* any equation: a constant (:class:`~sk_offwhite.Bias`), a leak for generic states;
+* inputs in the hypothesis: a saturating actuator and a dead zone;
+* measured states: a sensor offset; measured ceilings: an output saturation.
+
+The strongest dictionary terms are also proposed as they are
+(:class:`~sk_offwhite.DictionaryTerm`, when ``library`` is given): that is how an effect
+outside the catalogue enters the physics. Initial values come from the data: a term
+:math:`p\,b(x, u)` linear in its parameter starts at the least-squares fit of
+:math:`b` to the hypothesis' correction (converted to the physics' time unit); thresholds
+and widths from quantiles and RMS values of the record. Candidates are identified by the
+effect's name, so a cause proposed twice is tried once.
 """
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
 
 from .._effects import (
+    Bias,
+    DeadZone,
+    DictionaryTerm,
     Effect,
     Friction,
     InputSaturation,
@@ -22,10 +39,13 @@ from .._effects import (
     OutputOffset,
     OutputSaturation,
     Overflow,
+    QuadraticDrag,
+    Stiffness,
 )
+from .._kinds import LEVEL_KINDS, VELOCITY_KINDS, Kinds
 from ._hypotheses import Hypothesis
 
-__all__ = ["Candidate", "propose_effects"]
+__all__ = ["Candidate", "promoted_terms", "propose_effects"]
 
 CONSTANT_FEATURE = "1"
 """Name of the constant term of pysindy libraries (``include_bias=True``)."""
@@ -86,24 +106,110 @@ def _gains(hypothesis, states, names) -> list[Candidate]:
     ]
 
 
-def _frictions(hypothesis, names) -> list[Candidate]:
-    """A correction of a state's own equation in that state: perhaps a friction on it."""
+def _fitted_start(effect: Effect, hypothesis: Hypothesis, states, u, dt: float):
+    """``effect`` with its one linear parameter at the least-squares fit of its term to the
+    hypothesis' correction (per unit time), kept inside the parameter's bounds."""
+    basis = effect.basis(states, u) if hasattr(effect, "basis") else None
+    if basis is None or hypothesis.correction is None:
+        return effect
+    target = np.asarray(hypothesis.correction, float) / dt
+    norm = float(basis @ basis)
+    if not (norm > 0 and np.all(np.isfinite(target))):
+        return effect
+    value = float(basis @ target) / norm
+    ((name, spec),) = effect.parameters().items()
+    lower = spec.bounds[0]
+    if lower is not None and value <= lower:
+        value = lower + 1e-3 * abs(float(basis @ target)) / norm + 1e-12
+    field = name[len(effect.name) + 1 :]
+    return type(effect)(**{**_init_args(effect), field: value})
+
+
+def _init_args(effect: Effect) -> dict:
+    """Constructor arguments of an effect (its attributes)."""
+    args = dict(vars(effect))
+    if isinstance(effect, Friction) and args.get("velocity") == args.get("state"):
+        args.pop("velocity")
+    return args
+
+
+def _mechanical(hypothesis, states, names, kinds: Kinds) -> list[Candidate]:
+    """Friction, drag, stiffness and an offset in a velocity's (or rate's) equation."""
     i, name = hypothesis.equation_index, hypothesis.equation
-    if name not in hypothesis.variables:
+    kind = kinds.states[i]
+    one_signed = np.all(states[:, i] >= 0) or np.all(states[:, i] <= 0)
+    generic_velocity = kind == "generic" and name in hypothesis.variables and not one_signed
+    if kind not in VELOCITY_KINDS and not generic_velocity:
         return []
-    why = f"{hypothesis.sentence} A (Coulomb) friction braking {name}."
-    return [Candidate(Friction(i, name=f"friction_{name}"), why)]
+    width = 0.01 * float(np.sqrt(np.mean(states[:, i] ** 2)) or 1.0)
+    why = hypothesis.sentence
+    out = [
+        Candidate(Friction(i, width=width, name=f"friction_{name}"), f"{why} A Coulomb friction."),
+        Candidate(QuadraticDrag(i, name=f"drag_{name}"), f"{why} A quadratic drag."),
+    ]
+    position = kinds.partner.get(i)
+    if position is not None:
+        out.append(
+            Candidate(
+                Stiffness(i, position, name=f"stiffness_{names[position]}"),
+                f"{why} A cubic stiffness in {names[position]}.",
+            )
+        )
+    return out
+
+
+def _constants(hypothesis, kinds: Kinds) -> list[Candidate]:
+    """A constant in the equation (a force offset, an inflow); a leak for generic states."""
+    i, name = hypothesis.equation_index, hypothesis.equation
+    out = [Candidate(Bias(i, name=f"bias_{name}"), f"{hypothesis.sentence} A constant term.")]
+    if kinds.states[i] in ("generic", "temperature") and hypothesis.sign < 0:
+        out.append(Candidate(Leak(i, name=f"leak_{name}"), f"{hypothesis.sentence} A leak."))
+    return out
 
 
 def _actuators(hypothesis, u, input_names) -> list[Candidate]:
-    """A correction in an input: perhaps the actuator saturates."""
+    """A correction in an input: perhaps the actuator saturates, or has a dead zone."""
+    out = []
+    for j, n in enumerate(input_names):
+        if n not in hypothesis.variables or np.ptp(u[:, j]) == 0:
+            continue
+        rms = float(np.sqrt(np.mean(u[:, j] ** 2)))
+        out += [
+            Candidate(
+                InputSaturation(j, float(np.quantile(np.abs(u[:, j]), 0.9)), name=f"actuator_{n}"),
+                f"{hypothesis.sentence} The actuator of {n} may saturate.",
+            ),
+            Candidate(
+                DeadZone(j, 0.25 * rms, name=f"dead_zone_{n}"),
+                f"{hypothesis.sentence} The actuator of {n} may have a dead zone.",
+            ),
+        ]
+    return out
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^0-9A-Za-z]+", "_", text).strip("_") or "term"
+
+
+def promoted_terms(hypotheses, library, input_features, dt: float, limit=3) -> list[Candidate]:
+    """The ``limit`` strongest dictionary terms as :class:`~sk_offwhite.DictionaryTerm`."""
+    terms = sorted(
+        ((h.gain * t.share, h, t) for h in hypotheses for t in h.terms if t.column >= 0),
+        key=lambda item: -item[0],
+    )[:limit]
     return [
         Candidate(
-            InputSaturation(j, float(np.quantile(np.abs(u[:, j]), 0.9)), name=f"actuator_{n}"),
-            f"{hypothesis.sentence} The actuator of {n} may saturate.",
+            DictionaryTerm(
+                h.equation_index,
+                library,
+                input_features,
+                t.column,
+                coefficient=t.coefficient / dt,
+                name=f"term_{h.equation}_{_slug(t.feature)}",
+            ),
+            f"{h.sentence} The term {t.feature} itself, promoted into the {h.equation} equation.",
         )
-        for j, n in enumerate(input_names)
-        if n in hypothesis.variables and np.ptp(u[:, j]) > 0
+        for _, h, t in terms
     ]
 
 
@@ -141,6 +247,25 @@ def _ceilings(range_facts, output_names, measured, names) -> list[Candidate]:
     return out
 
 
+def _level_effects(hypothesis, states, names, kinds: Kinds) -> list[Candidate]:
+    """Overflows and leaks, for levels and one-signed generic states."""
+    i = hypothesis.equation_index
+    one_signed = np.all(states[:, i] >= 0) or np.all(states[:, i] <= 0)
+    if kinds.states[i] not in LEVEL_KINDS and not (kinds.states[i] == "generic" and one_signed):
+        return []
+    if hypothesis.sign < 0:
+        return _losses(hypothesis, states, names)
+    return [c for c in _gains(hypothesis, states, names) if _is_level(c.effect, states, kinds)]
+
+
+def _is_level(effect, states, kinds: Kinds) -> bool:
+    kind = kinds.states[effect.state]
+    column = states[:, effect.state]
+    return kind in LEVEL_KINDS or (
+        kind == "generic" and bool(np.all(column >= 0) or np.all(column <= 0))
+    )
+
+
 def propose_effects(
     hypotheses,
     range_facts,
@@ -151,13 +276,15 @@ def propose_effects(
     *,
     u=None,
     input_names=(),
+    kinds: Kinds | None = None,
+    dt: float = 1.0,
 ) -> list[Candidate]:
     """Candidate effects (list of :class:`Candidate`), one per effect name, by evidence.
 
     Parameters
     ----------
     hypotheses : list of Hypothesis
-        From :func:`~sk_offwhite.loop.form_hypotheses`, strongest first.
+        From :func:`~sk_offwhite.loop.evidence_hypotheses`, strongest first.
     range_facts : list of RangeViolation
         From :func:`~sk_offwhite.diagnose.range_violations`.
     state_names, output_names : sequence of str
@@ -167,19 +294,30 @@ def propose_effects(
         Index of the state each output measures directly, when the output map is
         :class:`~sk_offwhite._physics.MeasuredStates`; enables offset and cap candidates.
     u : ndarray of shape (n_samples, n_inputs), default=None
-        Inputs of the record, with ``input_names``; enable actuator-saturation candidates.
+        Inputs of the record, with ``input_names``; enable actuator candidates.
     input_names : sequence of str, default=()
+    kinds : Kinds, default=None
+        Physical kinds (:func:`~sk_offwhite._kinds.physical_kinds`); ``None``: generic.
+    dt : float, default=1.0
+        Time unit of the effects' rates (:func:`~sk_offwhite._effects.time_step`).
     """
     names, output_names = tuple(state_names), list(output_names)
+    states = np.asarray(states, float)
+    u_arr = None if u is None else np.asarray(u, float)
+    if kinds is None:
+        kinds = Kinds(("generic",) * len(names), ("generic",) * len(input_names), {})
     proposals = []
     for hypothesis in hypotheses:
-        if hypothesis.sign < 0:
-            proposals += _losses(hypothesis, states, names)
-        else:
-            proposals += _gains(hypothesis, states, names)
-        proposals += _frictions(hypothesis, names)
-        if u is not None:
-            proposals += _actuators(hypothesis, np.asarray(u, float), tuple(input_names))
+        found = _level_effects(hypothesis, states, names, kinds)
+        found += _mechanical(hypothesis, states, names, kinds)
+        found += _constants(hypothesis, kinds)
+        if u_arr is not None:
+            found += _actuators(hypothesis, u_arr, tuple(input_names))
+        u_rows = np.zeros((len(states), 0)) if u_arr is None else u_arr
+        proposals += [
+            Candidate(_fitted_start(c.effect, hypothesis, states, u_rows, dt), c.reason)
+            for c in found
+        ]
     if measured is not None:
         proposals += _offsets(hypotheses, list(measured), output_names)
     proposals += _ceilings(range_facts, output_names, measured, names)

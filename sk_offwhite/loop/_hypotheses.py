@@ -1,26 +1,37 @@
-r"""From a fitted sparse correction to named hypotheses about the missing physics.
+r"""From the evidence of the dictionary terms to named hypotheses about the missing physics.
 
-For a fitted model with correction :math:`\delta_i = \sum_j \Omega_{ij}\varphi_j` on state
-equation :math:`i`, each selected term is ranked by its contribution along the simulated
-trajectory, :math:`c_{ij} = \mathrm{RMS}_k(\Omega_{ij}\varphi_j(\hat x_k, u_k))`, and its
-share :math:`c_{ij}^2 / \sum_{j'} c_{ij'}^2`. The variables of the dominant terms, the sign of
+:func:`evidence_hypotheses` reads the hypotheses off the physics-only fit: each term's
+projected gain (:class:`~sk_offwhite._sparsity.TermEvidence`, the part of the residual it
+explains that no re-adjustment of the declared parameters can), so a term that only
+re-parametrises the physics (a linear spring in a linear oscillator) carries no weight.
+Terms within ``min_share`` of the strongest make up one hypothesis per equation, its
+correction :math:`\hat\delta_i = \hat\Omega_{ij}\varphi_j` taken from the equation's
+strongest term.
+
+:func:`form_hypotheses` reads them off a fitted sparse correction instead: for a
+correction :math:`\delta_i = \sum_j \Omega_{ij}\varphi_j` of state equation :math:`i`,
+each selected term is ranked by its contribution along the simulated trajectory,
+:math:`c_{ij} = \mathrm{RMS}_k(\Omega_{ij}\varphi_j(\hat x_k, u_k))`, with share
+:math:`c_{ij}^2 / \sum_{j'} c_{ij'}^2`.
+
+Either way, the variables of the dominant terms, the sign of
 :math:`\sum_k \delta_{i,k} \hat x_{i,k}` (``-1``: the correction drives :math:`x_i` toward
 zero, i.e. removes from a level) and the range of a variable where :math:`|\delta_i|`
-concentrates (found with :func:`~sk_offwhite.diagnose.residual_regions` applied to
+concentrates (:func:`~sk_offwhite.diagnose.residual_regions` applied to
 :math:`\delta_i`) make up one hypothesis per corrected equation.
 """
 
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import jax
 import numpy as np
 
 from ..diagnose import residual_regions
 
-__all__ = ["Hypothesis", "Term", "form_hypotheses", "rank_terms"]
+__all__ = ["Hypothesis", "Term", "evidence_hypotheses", "form_hypotheses", "rank_terms"]
 
 
 @dataclass(frozen=True)
@@ -33,6 +44,7 @@ class Term:
     contribution: float
     share: float
     variables: tuple[str, ...]
+    column: int = -1
 
 
 @dataclass(frozen=True)
@@ -46,6 +58,8 @@ class Hypothesis:
     region: tuple[str, float, float] | None
     terms: tuple[Term, ...] = field(default=())
     sentence: str = ""
+    correction: np.ndarray | None = field(default=None, compare=False, repr=False)
+    gain: float = 0.0
 
 
 def feature_variables(feature: str, names: tuple[str, ...]) -> tuple[str, ...]:
@@ -53,15 +67,19 @@ def feature_variables(feature: str, names: tuple[str, ...]) -> tuple[str, ...]:
     return tuple(n for n in names if re.search(rf"(?<![\w]){re.escape(n)}(?![\w])", feature))
 
 
-def _features(est, run, u) -> np.ndarray:
-    """Per-term contributions ``Ω_ij φ_j`` along the trajectory, shape (n, n_delta, m)."""
+def _basis_values(est, run, u) -> np.ndarray:
+    """The dictionary ``φ_j`` along the trajectory, shape (n, n_delta, m)."""
     from .._basis import evaluate_matrix
 
     basis, _ = est._compile(est.physics_)
     v = np.hstack([run.states, np.asarray(u, float)])
     with jax.enable_x64(True):
-        phi = np.asarray(evaluate_matrix(basis, est.inner_params_, v))
-    return phi * est.coef_[None]
+        return np.asarray(evaluate_matrix(basis, est.inner_params_, v))
+
+
+def _features(est, run, u) -> np.ndarray:
+    """Per-term contributions ``Ω_ij φ_j`` along the trajectory, shape (n, n_delta, m)."""
+    return _basis_values(est, run, u) * est.coef_[None]
 
 
 def rank_terms(est, run, u) -> list[list[Term]]:
@@ -80,6 +98,7 @@ def rank_terms(est, run, u) -> list[list[Term]]:
                 float(rms[j]),
                 float(rms[j] ** 2 / total),
                 feature_variables(est.feature_names_[j], names),
+                int(j),
             )
             for j in np.flatnonzero(est.support_[row])
         ]
@@ -133,25 +152,95 @@ def _sign(delta: np.ndarray, state: np.ndarray, signals: dict, region) -> int:
     return int(np.sign(np.sum(weight)) or 1)
 
 
-def form_hypotheses(est, run, u) -> list[Hypothesis]:
-    """One hypothesis per equation whose correction is not zero, strongest first."""
-    ranked = rank_terms(est, run, u)
+def _hypothesis(state, equation, terms, delta, run, signals) -> Hypothesis:
+    """The hypothesis of one equation from its ranked terms and its correction ``delta``."""
+    variables = _dominant_variables(terms)
+    names = tuple(signals)
+    regions = residual_regions(delta, {v: signals[v] for v in variables or names}, n_shifts=0)
+    best = regions[0] if regions and regions[0].rms_ratio >= 1.25 else None
+    region = None if best is None else (best.variable, best.low, best.high)
+    sign = _sign(delta, run.states[:, state], signals, region)
+    one_signed = bool(np.all(run.states[:, state] >= 0) or np.all(run.states[:, state] <= 0))
+    sentence = _sentence(equation, variables, sign, region, one_signed)
+    return Hypothesis(
+        equation, state, variables, sign, region, tuple(terms), sentence, correction=delta
+    )
+
+
+def _signals(est, run, u) -> dict:
     names = tuple(est.physics_.state_names) + tuple(est.physics_.input_names)
-    signals = dict(zip(names, np.hstack([run.states, np.asarray(u, float)]).T, strict=True))
+    return dict(zip(names, np.hstack([run.states, np.asarray(u, float)]).T, strict=True))
+
+
+def form_hypotheses(est, run, u) -> list[Hypothesis]:
+    """One hypothesis per equation whose fitted correction is not zero, strongest first."""
+    ranked = rank_terms(est, run, u)
+    signals = _signals(est, run, u)
     hypotheses = []
     for row, state in enumerate(est.delta_states_):
         if not ranked[row]:
             continue
-        delta = run.correction[:, state]
-        variables = _dominant_variables(ranked[row])
-        regions = residual_regions(delta, {v: signals[v] for v in variables or names}, n_shifts=0)
-        best = regions[0] if regions and regions[0].rms_ratio >= 1.25 else None
-        region = None if best is None else (best.variable, best.low, best.high)
         equation = est.physics_.state_names[state]
-        sign = _sign(delta, run.states[:, state], signals, region)
-        one_signed = bool(np.all(run.states[:, state] >= 0) or np.all(run.states[:, state] <= 0))
-        sentence = _sentence(equation, variables, sign, region, one_signed)
         hypotheses.append(
-            Hypothesis(equation, state, variables, sign, region, tuple(ranked[row]), sentence)
+            _hypothesis(state, equation, ranked[row], run.correction[:, state], run, signals)
         )
     return sorted(hypotheses, key=lambda h: -sum(t.contribution**2 for t in h.terms))
+
+
+def _evidence_terms(est, phi, row, chosen) -> list[Term]:
+    """Terms ``chosen`` of correction row ``row``, by gain, shares within the equation."""
+    gain, estimate = est.term_gain_[row], est.term_estimate_[row]
+    names = tuple(est.physics_.state_names) + tuple(est.physics_.input_names)
+    total = float(np.sum(gain[chosen]))
+    terms = [
+        Term(
+            est.physics_.state_names[est.delta_states_[row]],
+            est.feature_names_[j],
+            float(estimate[j]),
+            float(np.sqrt(np.mean((estimate[j] * phi[:, row, j]) ** 2))),
+            float(gain[j] / total),
+            feature_variables(est.feature_names_[j], names),
+            int(j),
+        )
+        for j in chosen
+    ]
+    return sorted(terms, key=lambda t: -t.share)
+
+
+def evidence_hypotheses(est, run, u, *, min_share: float = 0.1) -> list[Hypothesis]:
+    """Hypotheses from the projected evidence of a physics-only fit, strongest first.
+
+    Parameters
+    ----------
+    est : GreyBoxSparseRegressor
+        Fitted with a library (``term_gain_`` set), typically with the weights at zero.
+    run : Bunch
+        ``est.simulate(u)``.
+    u : ndarray of shape (n_samples, n_inputs)
+    min_share : float, default=0.1
+        Terms whose gain is at least this fraction of the largest are evidence.
+
+    Returns
+    -------
+    list of Hypothesis
+        ``gain`` is the largest term gain of the equation (the fraction of the
+        physics-only cost its strongest term removes); empty when no term has any.
+    """
+    gain = np.nan_to_num(np.asarray(est.term_gain_, float))
+    top = float(np.max(gain, initial=0.0))
+    if top <= 0:
+        return []
+    phi = _basis_values(est, run, u)
+    signals = _signals(est, run, u)
+    hypotheses = []
+    for row, state in enumerate(est.delta_states_):
+        chosen = np.flatnonzero(gain[row] >= min_share * top)
+        if chosen.size == 0:
+            continue
+        terms = _evidence_terms(est, phi, row, chosen)
+        strongest = terms[0].column
+        delta = est.term_estimate_[row, strongest] * phi[:, row, strongest]
+        equation = est.physics_.state_names[state]
+        hypothesis = _hypothesis(state, equation, terms, delta, run, signals)
+        hypotheses.append(replace(hypothesis, gain=float(gain[row, strongest])))
+    return sorted(hypotheses, key=lambda h: -h.gain)

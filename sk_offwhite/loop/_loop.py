@@ -1,41 +1,50 @@
-r"""The closed loop: residual -> sparse correction -> named effect -> refit -> before/after.
+r"""The closed loop: residual -> evidence -> named effect -> refit -> before/after.
 
-1. Fit the declared physics (multiple shooting, then the whole record); analyse its
-   simulation residual on the estimation record.
-2. Fit the physics plus a sparse correction :math:`\delta` along the support path
-   (:func:`~sk_offwhite.fit_gamma_path`, a grid relative to :math:`\gamma_{max}`), with
-   :math:`\gamma` chosen by cross-validation on the estimation record; turn the selected
-   terms into hypotheses.
-3. Propose explicit effects from the hypotheses and the measured output range. Fit each
-   alone on the estimation record, order them by how much they reduce its simulation error,
-   and cross-validate the nested models (the best one, then the best two, ...): effects
-   often act together (an overflow only explains the data once the sensor offset is right),
-   which a one-at-a-time test cannot see. The smallest nested model within ``tolerance`` of
-   the best cross-validated error is kept if it beats the declared physics by ``min_gain``.
-4. Refit the augmented physics, and the augmented physics with :math:`\delta` (its
-   :math:`\gamma` chosen again by cross-validation) to show what is left.
+1. Fit the declared physics (multiple shooting, then the whole record).
+2. **Evidence.** At that fit, every dictionary term's projected gain
+   (:class:`~sk_offwhite._sparsity.TermEvidence`): what it would explain that no
+   re-adjustment of the declared parameters can. The strongest terms make up the
+   hypotheses (:func:`~sk_offwhite.loop.evidence_hypotheses`).
+3. **Candidates** from the hypotheses, the measured output range and the variables'
+   physical kinds (:func:`~sk_offwhite.loop.propose_effects`), plus the strongest terms
+   themselves promoted into the physics (:class:`~sk_offwhite.DictionaryTerm`).
+4. **Selection.** Each candidate is fitted alone on the estimation record; then forward
+   selection adds, among the ``beam`` best, the candidate that lowers the estimation error
+   most while it lowers it by ``min_gain`` (when no candidate helps alone, pairs of the best
+   are tried: effects such as Coulomb friction and a force offset only help together). The
+   nested sets of that order are cross-validated; the smallest within ``tolerance`` of the
+   best is kept if it beats the declared physics by ``min_gain``.
+5. Refit the augmented physics and, with ``fit_delta``, the declared and augmented physics
+   with a sparse :math:`\delta` (:math:`\gamma` chosen by CV on the support path).
+6. **Never worse.** Every final model is cross-validated the same way; ``result.chosen``
+   names the CV-best, and a model is never preferred to one with a lower CV error.
 
-Every model starts from the previous stage's fitted values (parameters and initial state).
-Cross-validation holds out contiguous blocks of the estimation record; each held-out block's
-initial state is estimated from its first ``init_window`` samples, which are not scored
-(:func:`~sk_offwhite.loop.held_out_rmse`). Validation data, when given, are only scored.
+Every fit that fails (a candidate, a fold, a :math:`\gamma`) becomes a line of
+``result.failures`` and the loop goes on; warnings are re-issued with the name of the fit
+they come from. Cross-validation holds out contiguous blocks of the estimation record; each
+held-out block's initial state is estimated from its first ``init_window`` samples, which
+are not scored (:func:`~sk_offwhite.loop.held_out_rmse`). Validation data, when given, are
+only scored.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
+from sklearn.base import clone
 from sklearn.model_selection import KFold, cross_val_score
 
-from .._effects import augment
+from .._effects import DictionaryTerm, augment, time_step
 from .._estimator import GreyBoxSparseRegressor
+from .._kinds import physical_kinds
 from .._path import GammaPath, fit_gamma_path
 from .._physics import Parameter
 from ..diagnose import analyse_residuals, range_violations
-from ._candidates import propose_effects
-from ._hypotheses import form_hypotheses
-from ._scoring import held_out_rmse
+from ._candidates import promoted_terms, propose_effects
+from ._hypotheses import evidence_hypotheses
+from ._scoring import MODEL_LABELS, held_out_rmse
 
 __all__ = ["LoopResult", "LoopSettings", "close_the_loop", "fit_continued", "warm_physics"]
 
@@ -54,7 +63,11 @@ class LoopSettings:
     ``tolerance`` the relative slack within which a smaller nested set is preferred.
     ``max_candidates`` caps how many proposed effects are fitted, in the order they are
     proposed (strongest hypothesis first); ``None`` fits them all. Each candidate costs a
-    fit and a compilation, so a cap is the way to make a quick run quicker.
+    fit and a compilation, so a cap is the way to make a quick run quicker. ``beam`` is
+    how many of the best single candidates forward selection combines; ``min_share`` the
+    fraction of the strongest term's gain a term needs to be evidence; ``n_promoted`` how
+    many of the strongest terms are proposed as they are; ``fit_delta`` whether the models
+    with a sparse :math:`\delta` are fitted (they show what is left, and cost a path each).
     """
 
     gammas: tuple[float, ...] | None = None
@@ -70,6 +83,10 @@ class LoopSettings:
     delta_states: tuple[int, ...] | None = None
     init_window: int = 50
     max_candidates: int | None = None
+    beam: int = 4
+    min_share: float = 0.1
+    n_promoted: int = 3
+    fit_delta: bool = True
 
     def __post_init__(self):
         if self.max_candidates is not None and self.max_candidates < 1:
@@ -83,7 +100,12 @@ class LoopResult:
     ``selection`` holds ``(label, cross-validated RMSE)`` of the declared physics and of
     every nested effect set tried; ``single_fits`` ``(effect name, estimation RMSE)`` of
     each candidate fitted alone; ``gamma_path`` and ``final_gamma_path`` the support paths
-    (:class:`~sk_offwhite.GammaPath`, ``None`` for a single γ) of the two fits with δ.
+    (:class:`~sk_offwhite.GammaPath`, ``None`` for a single γ) of the two fits with δ
+    (``with_delta`` and ``final_with_delta`` are ``None`` without ``fit_delta`` or when
+    they failed). ``evidence`` is the physics-only fit with the dictionary the hypotheses
+    come from; ``cv_errors`` maps each fitted model's key (``"baseline"``, ``"with_delta"``,
+    ``"final"``, ``"final_with_delta"``) to its cross-validated RMSE, ``chosen`` is the
+    key of the lowest; ``failures`` one line per fit that failed.
     """
 
     physics: object
@@ -100,6 +122,15 @@ class LoopResult:
     effects: tuple = ()
     single_fits: list = field(default_factory=list)
     final_gamma_path: GammaPath | None = None
+    evidence: GreyBoxSparseRegressor | None = None
+    cv_errors: dict = field(default_factory=dict)
+    chosen: str = "baseline"
+    failures: list = field(default_factory=list)
+
+    @property
+    def best(self) -> GreyBoxSparseRegressor:
+        """The model with the lowest cross-validated error (``chosen``)."""
+        return getattr(self, self.chosen)
 
 
 def fit_continued(est: GreyBoxSparseRegressor, u, z, horizon):
@@ -151,6 +182,21 @@ def _cv_rmse(est, u, z, settings: LoopSettings) -> float:
     return float(-np.mean(scores))
 
 
+def _attempt(failures: list, label: str, function, *args):
+    """``function(*args)``; a failure becomes a line of ``failures`` (and ``None``), and
+    warnings are re-issued prefixed with ``label``."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            value = function(*args)
+        except (ValueError, TypeError, FloatingPointError, np.linalg.LinAlgError) as error:
+            failures.append(f"{label}: {error}")
+            value = None
+    for warning in caught:
+        warnings.warn(f"{label}: {warning.message}", warning.category, stacklevel=3)
+    return value
+
+
 def _fit_delta(physics, library, u, z, settings):
     """Physics + δ on the support path, γ chosen by CV RMSE; the fitted estimator and the
     path (``None`` for a single γ, fitted directly)."""
@@ -173,37 +219,105 @@ def _fit_delta(physics, library, u, z, settings):
     return path.estimator, path
 
 
+def _evidence(physics, library, u, z, settings) -> GreyBoxSparseRegressor:
+    """The physics-only fit on the whole record with the dictionary's evidence."""
+    est = _estimator(physics, settings, library=library, delta_states=settings.delta_states)
+    return est.set_params(horizon=None)._fit(u, z, None, reference_only=True)
+
+
 def _rmse(outputs, z: np.ndarray) -> float:
     """RMSE of simulated ``outputs`` against ``z`` (2-D); ``inf`` for a diverged simulation."""
-    error = np.reshape(outputs, z.shape) - z
-    value = float(np.sqrt(np.mean(error**2)))
+    with np.errstate(over="ignore", invalid="ignore"):
+        error = np.reshape(outputs, z.shape) - z
+        value = float(np.sqrt(np.mean(error**2)))
     return value if np.isfinite(value) else np.inf
 
 
-def _rank_alone(physics, candidates, u, z, settings):
-    """``(estimation RMSE, candidate, fitted effect parameters)`` of each candidate added
-    alone, best first.
+def _effect_parameters(est, effects) -> dict:
+    """The fitted free parameters of ``effects`` in ``est``, as :class:`Parameter`."""
+    return {
+        name: Parameter(est.parameters_[name], spec.bounds)
+        for effect in effects
+        for name, spec in effect.parameters().items()
+        if not spec.fixed
+    }
 
-    A quick fit ranks them: multiple shooting over ``horizon`` windows only (the whole
-    record when ``horizon`` is ``None``), scored by the free run of the whole record. The
-    effect's fitted parameters start the nested fits, so a threshold (a level, a cap) is
-    not searched again from its first guess.
-    """
+
+def _quick_fit(physics, effects, warm, u, z, settings):
+    """``(estimation RMSE, fitted effect parameters)`` of ``physics`` plus ``effects``: a
+    multiple-shooting fit over ``horizon`` windows, scored by the free run of the record."""
+    model = augment(physics, *effects).with_parameters(**warm)
+    est = _estimator(model, settings).fit(u, z)
+    return _rmse(est.predict(u), z), _effect_parameters(est, effects)
+
+
+def _rank_alone(physics, candidates, u, z, settings, failures):
+    """``(estimation RMSE, candidate, fitted effect parameters)`` of each candidate added
+    alone, best first (``inf`` and a line in ``failures`` where the fit failed); a named
+    effect ranks before a promoted term unless the term is better by ``tolerance``."""
     ranked = []
     for candidate in candidates:
-        try:
-            est = _estimator(augment(physics, candidate.effect), settings).fit(u, z)
-        except ValueError:  # e.g. the effect's initial guess does not simulate
-            ranked.append((np.inf, candidate, {}))
-            continue
-        own = candidate.effect.parameters()
-        fitted = {
-            name: Parameter(est.parameters_[name], spec.bounds)
-            for name, spec in own.items()
-            if not spec.fixed
-        }
-        ranked.append((_rmse(est.predict(u), z), candidate, fitted))
-    return sorted(ranked, key=lambda item: item[0])
+        label = f"candidate {candidate.effect.name}"
+        fitted = _attempt(
+            failures, label, _quick_fit, physics, (candidate.effect,), {}, u, z, settings
+        )
+        rmse, params = fitted if fitted is not None else (np.inf, {})
+        ranked.append((rmse, candidate, params))
+    return sorted(ranked, key=lambda item: item[0] * _handicap(item[1].effect, settings))
+
+
+def _handicap(effect, settings) -> float:
+    """A promoted dictionary term must beat a named effect by ``tolerance`` to rank first."""
+    return 1.0 + settings.tolerance if isinstance(effect, DictionaryTerm) else 1.0
+
+
+def _forward(physics, ranked, u, z, settings, base_rmse, failures):
+    """Forward selection: ``[(effects, warm parameters, estimation RMSE)]`` for each step."""
+    pool = [(c.effect, params, r) for r, c, params in ranked if np.isfinite(r)][: settings.beam]
+    steps, current, current_rmse = [], [], base_rmse
+    if pool and pool[0][2] <= (1.0 - settings.min_gain) * base_rmse:
+        steps.append(((pool[0][0],), pool[0][1], pool[0][2]))
+        current, current_rmse = [pool[0][0]], pool[0][2]
+    else:
+        pool, steps = [], _best_pair(physics, pool[:3], u, z, settings, base_rmse, failures)
+        if steps:
+            current, current_rmse = list(steps[0][0]), steps[0][2]
+    while len(current) < settings.max_effects:
+        trials = []
+        for effect, params, _ in pool:
+            if effect in current:
+                continue
+            warm = {**steps[-1][1], **params}
+            label = "effects " + " + ".join(e.name for e in (*current, effect))
+            fitted = _attempt(
+                failures, label, _quick_fit, physics, (*current, effect), warm, u, z, settings
+            )
+            if fitted is not None:
+                trials.append((fitted[0], effect, fitted[1]))
+        if not trials:
+            break
+        rmse, effect, params = min(trials, key=lambda t: t[0])
+        if rmse > (1.0 - settings.min_gain) * current_rmse:
+            break
+        current, current_rmse = [*current, effect], rmse
+        steps.append((tuple(current), params, rmse))
+    return steps
+
+
+def _best_pair(physics, pool, u, z, settings, base_rmse, failures):
+    """When no candidate helps alone: the best pair of the ``pool`` if it helps."""
+    best = None
+    for a in range(len(pool)):
+        for b in range(a + 1, len(pool)):
+            effects = (pool[a][0], pool[b][0])
+            label = "effects " + " + ".join(e.name for e in effects)
+            warm = {**pool[a][1], **pool[b][1]}
+            fitted = _attempt(failures, label, _quick_fit, physics, effects, warm, u, z, settings)
+            if fitted is not None and (best is None or fitted[0] < best[2]):
+                best = (effects, fitted[1], fitted[0])
+    if best is None or best[2] > (1.0 - settings.min_gain) * base_rmse:
+        return []
+    return [best]
 
 
 def _smallest_within(scores: list[float], tolerance: float) -> int:
@@ -212,27 +326,60 @@ def _smallest_within(scores: list[float], tolerance: float) -> int:
     return next(k for k, s in enumerate(scores) if s <= best * (1.0 + tolerance))
 
 
-def _select_effects(physics, candidates, u, z, settings, base_rmse):
-    """Nested effect sets in the order of their single-fit gain, chosen by CV RMSE.
+def _select_effects(physics, candidates, u, z, settings, base_rmse, failures=None):
+    """Effect sets by forward selection, the nested sets chosen by CV RMSE.
 
     Returns the chosen effects, the CV trail, the single-fit RMSEs and the effects'
-    parameters as fitted alone (the start of the final fit).
+    fitted parameters (the start of the final fit).
     """
-    ranked = _rank_alone(physics, candidates[: settings.max_candidates], u, z, settings)
+    failures = [] if failures is None else failures
+    ranked = _rank_alone(physics, candidates[: settings.max_candidates], u, z, settings, failures)
     singles = [(c.effect.name, r) for r, c, _ in ranked]
-    kept = [(c.effect, fitted) for r, c, fitted in ranked if r < base_rmse]
-    useful = [effect for effect, _ in kept][: settings.max_effects]
+    steps = _forward(physics, ranked, u, z, settings, base_rmse, failures)
     trail = [("declared physics", _cv_rmse(_estimator(physics, settings, cv=True), u, z, settings))]
-    for k in range(1, len(useful) + 1):
-        warm = {name: p for _, fitted in kept[:k] for name, p in fitted.items()}
-        model = augment(physics, *useful[:k]).with_parameters(**warm)
+    for effects, warm, _ in steps:
+        model = augment(physics, *effects).with_parameters(**warm)
         score = _cv_rmse(_estimator(model, settings, cv=True), u, z, settings)
-        trail.append((" + ".join(e.name for e in useful[:k]), score))
+        trail.append((" + ".join(e.name for e in effects), score))
     k = _smallest_within([s for _, s in trail], settings.tolerance)
     if k == 0 or trail[k][1] > (1.0 - settings.min_gain) * trail[0][1]:
         return (), trail, singles, {}
-    warm = {name: p for _, fitted in kept[:k] for name, p in fitted.items()}
-    return tuple(useful[:k]), trail, singles, warm
+    return steps[k - 1][0], trail, singles, steps[k - 1][1]
+
+
+def _delta_cv(path, est, u, z, settings) -> float:
+    """CV RMSE of a fitted model with δ at its chosen γ, scored as the trail is."""
+    template = clone(est).set_params(horizon=settings.cv_horizon)
+    return _cv_rmse(template, u, z, settings)
+
+
+def _choose(cv_errors: dict) -> str:
+    """Key of the lowest finite CV error (``"baseline"`` when none is finite)."""
+    finite = {k: v for k, v in cv_errors.items() if np.isfinite(v)}
+    return min(finite, key=finite.get) if finite else "baseline"
+
+
+def _candidates(physics, library, hypotheses, facts, run, u, settings):
+    """Catalogue effects and promoted dictionary terms, one per name."""
+    dt = time_step(physics)
+    names = list(physics.state_names) + list(physics.input_names)
+    found = propose_effects(
+        hypotheses,
+        facts,
+        physics.state_names,
+        _output_names(physics, run.outputs.shape[1]),
+        run.states,
+        getattr(physics.output, "indices", None),
+        u=u,
+        input_names=physics.input_names,
+        kinds=physical_kinds(physics),
+        dt=dt,
+    )
+    found += promoted_terms(hypotheses, library, names, dt, settings.n_promoted)
+    unique = {}
+    for candidate in found:
+        unique.setdefault(candidate.effect.name, candidate)
+    return list(unique.values())
 
 
 def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = None):
@@ -241,51 +388,85 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
     Returns
     -------
     LoopResult
-        The four fitted models, the evidence and the selection trail. Score validation
-        data with :func:`~sk_offwhite.loop.score_models`.
+        The fitted models, the evidence, the selection trail, the CV errors of the final
+        models and the failures. Score validation data with
+        :func:`~sk_offwhite.loop.score_models`.
+
+    Raises
+    ------
+    ValueError
+        When the declared physics itself cannot be fitted (nothing to compare with).
     """
     settings = settings or LoopSettings()
     u, z = np.asarray(u, float), np.asarray(z, float).reshape(len(u), -1)
+    failures: list[str] = []
     baseline = fit_continued(_estimator(physics, settings), u, z, settings.horizon)
     start = warm_physics(physics, baseline)
     run = baseline.simulate(u)
-    output_names = _output_names(physics, z.shape[1])
-    facts = range_violations(z, run.outputs, output_names)
-    with_delta, gamma_path = _fit_delta(start, library, u, z, settings)
-    hypotheses = form_hypotheses(with_delta, with_delta.simulate(u), u)
-    measured = getattr(physics.output, "indices", None)
-    candidates = propose_effects(
-        hypotheses,
-        facts,
-        physics.state_names,
-        output_names,
-        run.states,
-        measured,
-        u=u,
-        input_names=physics.input_names,
+    facts = range_violations(z, run.outputs, _output_names(physics, z.shape[1]))
+    evidence = _attempt(failures, "evidence", _evidence, start, library, u, z, settings)
+    hypotheses = (
+        []
+        if evidence is None
+        else evidence_hypotheses(evidence, evidence.simulate(u), u, min_share=settings.min_share)
     )
+    candidates = _candidates(start, library, hypotheses, facts, run, u, settings)
     effects, trail, singles, warm = _select_effects(
-        start, candidates, u, z, settings, _rmse(run.outputs, z)
+        start, candidates, u, z, settings, _rmse(run.outputs, z), failures
     )
     augmented = augment(start, *effects).with_parameters(**warm)
-    final = fit_continued(_estimator(augmented, settings), u, z, settings.horizon)
-    final_delta, final_path = _fit_delta(warm_physics(augmented, final), library, u, z, settings)
+    final = _attempt(
+        failures, "augmented physics", fit_continued, _estimator(augmented, settings), u, z,
+        settings.horizon,
+    ) or baseline  # fmt: skip
+    models = {"baseline": baseline, "final": final}
+    cv_errors = {"baseline": trail[0][1], "final": dict(trail).get(_label(effects), trail[0][1])}
+    paths = {}
+    if settings.fit_delta:
+        for key, base in (
+            ("with_delta", start),
+            ("final_with_delta", warm_physics(augmented, final)),
+        ):
+            fitted = _attempt(
+                failures, MODEL_LABELS[key], _fit_delta, base, library, u, z, settings
+            )
+            models[key], paths[key] = fitted if fitted is not None else (None, None)
+            if models[key] is not None:
+                cv = _attempt(
+                    failures,
+                    f"CV of {MODEL_LABELS[key]}",
+                    _delta_cv,
+                    paths[key],
+                    models[key],
+                    u,
+                    z,
+                    settings,
+                )
+                cv_errors[key] = np.inf if cv is None else cv
     return LoopResult(
         physics,
         augment(physics, *effects),
         baseline,
-        with_delta,
+        models.get("with_delta"),
         final,
-        final_delta,
-        gamma_path,
+        models.get("final_with_delta"),
+        paths.get("with_delta"),
         hypotheses,
         facts,
         candidates,
         trail,
         effects,
         singles,
-        final_path,
+        paths.get("final_with_delta"),
+        evidence,
+        cv_errors,
+        _choose(cv_errors),
+        failures,
     )
+
+
+def _label(effects) -> str:
+    return " + ".join(e.name for e in effects) if effects else "declared physics"
 
 
 def _output_names(physics, n_outputs: int) -> list[str]:

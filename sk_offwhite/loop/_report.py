@@ -47,18 +47,20 @@ def _figure_outputs(result, u, z, path: Path, title: str) -> None:
 
 
 def _figure_correction(result, u, path: Path) -> bool:
-    est = result.with_delta
-    run = est.simulate(u)
-    if not result.hypotheses:
+    """Each hypothesis' correction against the variable it concentrates on."""
+    hypotheses = [h for h in result.hypotheses if h.correction is not None]
+    if not hypotheses or result.evidence is None:
         return False
-    fig, axes = plt.subplots(1, len(result.hypotheses), figsize=(4.5 * len(result.hypotheses), 3.6))
+    est = result.evidence
+    run = est.simulate(u)
+    fig, axes = plt.subplots(1, len(hypotheses), figsize=(4.5 * len(hypotheses), 3.6))
     names = list(est.physics_.state_names) + list(est.physics_.input_names)
     signals = np.hstack([run.states, np.asarray(u, float)])
-    for ax, hyp in zip(np.atleast_1d(axes), result.hypotheses, strict=True):
+    for ax, hyp in zip(np.atleast_1d(axes), hypotheses, strict=True):
         variable = hyp.region[0] if hyp.region else (hyp.variables or names[:1])[0]
-        ax.plot(signals[:, names.index(variable)], run.correction[:, hyp.equation_index], ".", ms=2)
+        ax.plot(signals[:, names.index(variable)], hyp.correction, ".", ms=2)
         ax.set_xlabel(f"{variable} (simulated)")
-        ax.set_ylabel(f"δ in the {hyp.equation} equation")
+        ax.set_ylabel(f"linearised δ, {hyp.equation} equation")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -82,12 +84,17 @@ def _parameter_lines(est, u, z) -> list[str]:
 
 
 def _hypothesis_lines(result) -> list[str]:
-    lines = []
+    lines = [
+        "Each term's gain is the fraction of the declared physics' simulation cost it would "
+        "remove alone once the declared parameters re-adjust (first order); terms the "
+        "parameters can absorb carry none.",
+        "",
+    ]
     for hyp in result.hypotheses:
         lines += [
-            f"- **{hyp.sentence}**",
+            f"- **{hyp.sentence}** (strongest term's gain {hyp.gain:.1%})",
             "",
-            "  | term | Ω | RMS contribution | share |",
+            "  | term | Ω̂ (linearised) | RMS contribution | share of the gain |",
             "  |---|---|---|---|",
         ]
         lines += [
@@ -95,7 +102,9 @@ def _hypothesis_lines(result) -> list[str]:
             for t in hyp.terms[:8]
         ]
         lines.append("")
-    return lines or ["- The correction is empty: δ found nothing the physics misses."]
+    if not result.hypotheses:
+        return ["- No dictionary term explains what the declared physics misses."]
+    return lines
 
 
 def _alone_cell(alone: dict, name: str) -> str:
@@ -115,11 +124,41 @@ def _candidate_lines(result) -> list[str]:
 def _selection_lines(result) -> list[str]:
     lines = ["| model | cross-validated RMSE (estimation record) |", "|---|---|"]
     lines += [f"| {name} | {score:.4f} |" for name, score in result.selection]
+    values = result.final.parameters_
     chosen = [
-        f"- `{e.name}`: {e.describe(result.physics.state_names, _names(result))}"
+        f"- `{e.name}`: {e.describe(result.physics.state_names, _names(result), values)}; "
+        + ", ".join(f"{k} = {values[k]:.4g}" for k in e.parameters() if k in values)
         for e in result.effects
     ]
     return lines + ["", "Effects added:", ""] + (chosen or ["- none improved the CV score"])
+
+
+def _choice_lines(result) -> list[str]:
+    """Cross-validated error of every final model and the one chosen."""
+    lines = ["| model | cross-validated RMSE (estimation record) |", "|---|---|"]
+    lines += [
+        f"| {MODEL_LABELS[key]}{' (chosen)' if key == result.chosen else ''} | {cv:.4f} |"
+        for key, cv in result.cv_errors.items()
+    ]
+    return lines + [""]
+
+
+def _failure_lines(result) -> list[str]:
+    if not result.failures:
+        return ["- none", ""]
+    return [f"- {line}" for line in result.failures] + [""]
+
+
+def _remaining_lines(result) -> list[str]:
+    """The sparse δ fitted on the augmented physics, if it was fitted."""
+    after, before = result.final_with_delta, result.with_delta
+    if after is None:
+        return ["Not fitted (`fit_delta=False`, or the fit failed: see above).", ""]
+    lines = _gamma_lines(result.final_gamma_path, after.gamma)
+    count = f"Non-zero δ terms: {int(after.support_.sum())}"
+    if before is not None:
+        count += f" (on the declared physics: {int(before.support_.sum())})"
+    return lines + [count + ".", ""] + after.equations() + [""]
 
 
 def _gamma_lines(path, chosen: float) -> list[str]:
@@ -162,23 +201,19 @@ def write_report(result, rows, records: dict, directory, *, title: str, notes=()
     lines += _table(rows) + ["", "## Residual before and after", ""]
     lines += _residual_section(result, records, "baseline")
     lines += _residual_section(result, records, "final")
-    lines += ["## What the sparse correction says", ""]
-    lines += _gamma_lines(result.gamma_path, result.with_delta.gamma)
+    lines += ["## What the declared physics cannot explain", ""]
     lines += _hypothesis_lines(result)
     lines += ["![correction](correction.png)", ""] if has_delta_fig else []
     lines += ["## Effects tried and added", ""] + _candidate_lines(result) + [""]
     lines += _selection_lines(result) + [""]
     lines += ["## Parameters", ""] + _parameter_lines(result.final, *records["estimation"])
+    if result.with_delta is not None:
+        lines += ["## Sparse correction on the declared physics", ""]
+        lines += _gamma_lines(result.gamma_path, result.with_delta.gamma)
     lines += ["## Remaining correction on the augmented physics", ""]
-    lines += _gamma_lines(result.final_gamma_path, result.final_with_delta.gamma)
-    lines += [
-        f"Non-zero δ terms: {int(result.final_with_delta.support_.sum())} (before: "
-        f"{int(result.with_delta.support_.sum())}); Σ|Ω| "
-        f"{np.abs(result.final_with_delta.coef_).sum():.4g} (before: "
-        f"{np.abs(result.with_delta.coef_).sum():.4g}).",
-        "",
-    ]
-    lines += result.final_with_delta.equations() + [""]
+    lines += _remaining_lines(result)
+    lines += ["## Model chosen (lowest cross-validated error)", ""] + _choice_lines(result)
+    lines += ["## Fits that failed", ""] + _failure_lines(result)
     lines += [f"![outputs {n}](outputs_{n}.png)" for n in records] + [""]
     (out / "report.md").write_text("\n".join(lines), encoding="utf-8")
     (out / "results.json").write_text(json.dumps({"rows": rows}, indent=2), encoding="utf-8")

@@ -57,13 +57,15 @@ def _protocol_metrics(est, u, z, protocol: str, init_window: int) -> dict:
 
 
 def score_models(result, records: dict, init_window: int = 50) -> list[dict]:
-    """Rows ``{model, record, protocol, rmse, fit_percent}`` for every model and record.
+    """Rows ``{model, record, protocol, rmse, fit_percent}`` for every fitted model and record.
 
     ``records`` maps a record name (``"estimation"``, ``"validation"``) to ``(u, z)``.
     """
     rows = []
     for key, label in MODEL_LABELS.items():
         est = getattr(result, key)
+        if est is None:  # not fitted (fit_delta=False) or failed: listed in the report
+            continue
         for record, (u, z) in records.items():
             for protocol in ("original", "init_window"):
                 overall = _protocol_metrics(est, u, z, protocol, init_window)["overall"]
