@@ -223,13 +223,14 @@ class OutputOffset(Effect):
 class AdditiveEffect(Effect):
     r"""A term :math:`g(x, u; \theta_E)` added to the equation of state ``state``.
 
+    ``basis`` (when the term is :math:`p\,b(x, u)`, linear in its first parameter ``p``,
+    the others held) lets the loop start ``p`` from a least-squares fit to a correction.
+
     For a physics built with :meth:`PhysicsModel.from_ode` the term is added to the
     right-hand side, :math:`\dot x_s = r_s(x, u) + g`, and integrated with it, so its
     parameters are rates in the state's units per unit time (per second when the sampling
     time is in seconds); for a discrete-time physics it is added to :math:`x^+_s` (an
-    increment per sample). Subclasses implement :meth:`term`; ``basis`` (when the term is
-    :math:`p\,b(x, u)`, linear in its one parameter ``p``) lets the loop start ``p`` from
-    a least-squares fit to a correction.
+    increment per sample). Subclasses implement :meth:`term`.
     """
 
     state: int
@@ -276,10 +277,11 @@ class Friction(AdditiveEffect):
         g = -\bigl(F_c + F_s e^{-(v/v_s)^2}\bigr) \tanh(v / w),
 
     :math:`v = x_s` (or ``x[velocity]`` when the friction acts in another state's
-    equation). Parameters ``{name}_coulomb`` (:math:`F_c \ge 0`) and, when
-    ``stribeck_velocity`` (:math:`v_s`) is given, ``{name}_stribeck`` (:math:`F_s \ge 0`).
-    ``width`` (:math:`w`, in the velocity's units) smooths the sign; the loop sets it to
-    1 % of the velocity's RMS on the record, so it follows the data's units.
+    equation). Parameters ``{name}_coulomb`` (:math:`F_c \ge 0`), ``{name}_width``
+    (:math:`w > 0`, in the velocity's units: how sharp the sign is; the loop starts it at
+    1 % of the velocity's RMS, so it follows the data's units) and, when
+    ``stribeck_velocity`` (:math:`v_s`) is given, ``{name}_stribeck``
+    (:math:`F_s \ge 0`). ``fit_width=False`` keeps :math:`w` fixed.
     """
 
     def __init__(
@@ -290,6 +292,7 @@ class Friction(AdditiveEffect):
         width: float = 0.05,
         velocity: int | None = None,
         stribeck_velocity: float | None = None,
+        fit_width: bool = True,
         name: str = "friction",
     ):
         if not width > 0:
@@ -297,10 +300,13 @@ class Friction(AdditiveEffect):
         self.state, self.coulomb, self.width = int(state), float(coulomb), float(width)
         self.velocity = self.state if velocity is None else int(velocity)
         self.stribeck_velocity = None if stribeck_velocity is None else float(stribeck_velocity)
-        self.name = name
+        self.fit_width, self.name = bool(fit_width), name
 
     def parameters(self) -> dict[str, Parameter]:
-        params = {f"{self.name}_coulomb": Parameter(self.coulomb, (0.0, None))}
+        params = {
+            f"{self.name}_coulomb": Parameter(self.coulomb, (0.0, None)),
+            f"{self.name}_width": Parameter(self.width, (1e-12, None), fixed=not self.fit_width),
+        }
         if self.stribeck_velocity is not None:
             params[f"{self.name}_stribeck"] = Parameter(0.0, (0.0, None))
         return params
@@ -312,11 +318,9 @@ class Friction(AdditiveEffect):
             level = level + theta[f"{self.name}_stribeck"] * jnp.exp(
                 -((v / self.stribeck_velocity) ** 2)
             )
-        return -level * jnp.tanh(v / self.width)
+        return -level * jnp.tanh(v / theta[f"{self.name}_width"])
 
     def basis(self, x, u):
-        if self.stribeck_velocity is not None:
-            return None
         return -np.tanh(x[:, self.velocity] / self.width)
 
     def describe(self, state_names, output_names, values=None) -> str:
@@ -481,6 +485,12 @@ class DictionaryTerm(AdditiveEffect):
 
     def describe(self, state_names, output_names, values=None) -> str:
         return f"the {state_names[self.state]} equation gains a term in {self.feature}"
+
+    def __repr__(self) -> str:
+        return (
+            f"DictionaryTerm(state={self.state}, feature={self.feature!r}, "
+            f"coefficient={self.coefficient!r}, name={self.name!r})"
+        )
 
     def _key(self):
         from ._basis import _library_key

@@ -206,10 +206,11 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     gamma_max_ : float
         Smallest ``gamma`` for which :math:`\Omega = 0` is optimal (``nan`` without a
         library).
-    term_gain_, term_absorbed_, term_estimate_ : ndarray of shape (n_delta, n_features)
-        What each dictionary term could explain at the physics-only fit once the physics
-        re-adjusts (first order): the fraction of the cost it removes alone, the fraction
-        of its effect the physics already produces, and its linearised weight
+    term_gain_, term_absorbed_, term_estimate_, term_conditional_gain_ : ndarray
+        Shape (n_delta, n_features). What each dictionary term could explain at the
+        physics-only fit once the physics re-adjusts (first order): the fraction of the
+        cost it removes alone, the fraction of its effect the physics already produces,
+        its linearised weight, and its gain beyond the stronger terms (matching pursuit)
         (:class:`~sk_offwhite._sparsity.TermEvidence`); ``nan`` without a library.
     output_scale_ : ndarray of shape (n_outputs,)
         :math:`\sigma_o` of the training data.
@@ -517,9 +518,9 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         self._compiled = (basis, model)
 
     def _store_evidence(self, evidence, shape) -> None:
-        """``term_gain_``, ``term_absorbed_``, ``term_estimate_`` (nan without evidence)."""
-        names = ("term_gain_", "term_absorbed_", "term_estimate_")
-        for name, values in zip(names, evidence or (None,) * 3, strict=True):
+        """The ``term_*_`` evidence attributes (nan without evidence)."""
+        names = ("term_gain_", "term_absorbed_", "term_estimate_", "term_conditional_gain_")
+        for name, values in zip(names, evidence or (None,) * 4, strict=True):
             setattr(self, name, np.full(shape, np.nan) if values is None else np.asarray(values))
 
     # ------------------------------------------------------------------ predict / score

@@ -96,13 +96,17 @@ class TermEvidence(NamedTuple):
     the fraction of the cost the term removes alone once the physics re-adjusts, the
     fraction of its effect the physics parameters already produce (a term that only
     re-parametrises the physics has ``absorbed`` near 1 and ``gain`` 0) and its
-    linearised weight. All three are dimensionless or in the weight's own units, and do
-    not depend on the units of the data (the paper's :math:`\Upsilon` projection, §4).
+    linearised weight. ``conditional`` is the gain of each term when orthogonal matching
+    pursuit on the projected columns takes it (0 for terms it does not take): what a term
+    adds beyond the stronger ones, so that of two nearly collinear terms only one counts.
+    All are dimensionless or in the weight's own units, and do not depend on the units of
+    the data (the paper's :math:`\Upsilon` projection, §4).
     """
 
     gain: np.ndarray
     absorbed: np.ndarray
     estimate: np.ndarray
+    conditional: np.ndarray
 
 
 ABSORBED = 1.0 - 1e-6
@@ -123,7 +127,32 @@ def term_evidence(residual, physics_columns, omega_columns) -> TermEvidence:
     safe = np.where(usable, left, 1.0)
     gain = np.where(usable, inner**2 / safe / total, 0.0)
     estimate = np.where(usable, -inner / safe, 0.0)
-    return TermEvidence(gain, np.clip(absorbed, 0.0, 1.0), estimate)
+    conditional = matching_pursuit(residual, projected, usable)
+    return TermEvidence(gain, np.clip(absorbed, 0.0, 1.0), estimate, conditional)
+
+
+def matching_pursuit(residual, columns, usable, max_terms: int = 8, rtol: float = 1e-3):
+    r"""Gain of each column when orthogonal matching pursuit takes it, as a fraction of
+    :math:`\|r\|^2` (0 for the others); a column whose norm falls below ``rtol`` of its
+    own once the taken ones are projected out is redundant with them."""
+    residual, columns = residual.copy(), columns.copy()
+    own = np.sum(columns**2, axis=0)
+    usable = usable & (own > 0)
+    total = max(float(residual @ residual), 1e-300)
+    conditional = np.zeros(columns.shape[1])
+    for _ in range(max_terms):
+        norms = np.sum(columns**2, axis=0)
+        alive = usable & (norms > rtol * own)
+        gains = np.where(alive, (residual @ columns) ** 2 / np.where(alive, norms, 1.0), 0.0)
+        j = int(np.argmax(gains))
+        if gains[j] <= 1e-9 * total:
+            break
+        conditional[j] = gains[j] / total
+        direction = columns[:, j] / np.sqrt(norms[j])
+        residual = residual - direction * (direction @ residual)
+        columns = columns - np.outer(direction, direction @ columns)
+        usable[j] = False
+    return conditional
 
 
 def _column_space(columns: np.ndarray, rtol: float = 1e-10) -> np.ndarray:
@@ -170,11 +199,12 @@ def _full(values: np.ndarray, omega_flat: np.ndarray, shape, fill: float) -> np.
 def _full_evidence(evidence: TermEvidence | None, omega_flat, shape) -> TermEvidence | None:
     if evidence is None:
         return None
-    gain, absorbed, estimate = (
-        _full(np.asarray(values), omega_flat, shape, fill)
-        for values, fill in zip(evidence, (0.0, 1.0, 0.0), strict=True)
+    return TermEvidence(
+        *(
+            _full(np.asarray(values), omega_flat, shape, fill)
+            for values, fill in zip(evidence, (0.0, 1.0, 0.0, 0.0), strict=True)
+        )
     )
-    return TermEvidence(gain, absorbed, estimate)
 
 
 def _robust_scale(spread: np.ndarray, level: np.ndarray) -> np.ndarray:

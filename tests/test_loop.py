@@ -29,7 +29,9 @@ from sk_offwhite.loop._hypotheses import feature_variables
 @pytest.fixture(scope="module")
 def leaky():
     data = make_leaky_tank(n_samples=600, random_state=0)
-    settings = LoopSettings(gammas=(1e-3,), n_folds=2, max_iter=150, max_effects=1)
+    settings = LoopSettings(
+        gammas=(1e-3,), n_folds=2, max_iter=150, max_effects=1, max_candidates=6
+    )
     result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=settings)
     return data, result
 

@@ -17,7 +17,7 @@ from sk_offwhite.datasets import (
 )
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 
-SETTINGS = LoopSettings(gammas=(1e-3,), n_folds=2, max_iter=100, max_effects=1)
+SETTINGS = LoopSettings(n_folds=2, max_iter=100, max_effects=1, max_candidates=6, fit_delta=False)
 
 
 def _tanks():

@@ -107,8 +107,8 @@ def _gains(hypothesis, states, names) -> list[Candidate]:
 
 
 def _fitted_start(effect: Effect, hypothesis: Hypothesis, states, u, dt: float):
-    """``effect`` with its one linear parameter at the least-squares fit of its term to the
-    hypothesis' correction (per unit time), kept inside the parameter's bounds."""
+    """``effect`` with its linear (first) parameter at the least-squares fit of its term to
+    the hypothesis' correction (per unit time), kept inside the parameter's bounds."""
     basis = effect.basis(states, u) if hasattr(effect, "basis") else None
     if basis is None or hypothesis.correction is None:
         return effect
@@ -117,7 +117,7 @@ def _fitted_start(effect: Effect, hypothesis: Hypothesis, states, u, dt: float):
     if not (norm > 0 and np.all(np.isfinite(target))):
         return effect
     value = float(basis @ target) / norm
-    ((name, spec),) = effect.parameters().items()
+    name, spec = next(iter(effect.parameters().items()))
     lower = spec.bounds[0]
     if lower is not None and value <= lower:
         value = lower + 1e-3 * abs(float(basis @ target)) / norm + 1e-12

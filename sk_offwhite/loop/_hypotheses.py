@@ -4,7 +4,8 @@ r"""From the evidence of the dictionary terms to named hypotheses about the miss
 projected gain (:class:`~sk_offwhite._sparsity.TermEvidence`, the part of the residual it
 explains that no re-adjustment of the declared parameters can), so a term that only
 re-parametrises the physics (a linear spring in a linear oscillator) carries no weight.
-Terms within ``min_share`` of the strongest make up one hypothesis per equation, its
+Terms that add at least ``min_share`` of the strongest gain beyond the stronger terms
+(matching pursuit) make up one hypothesis per equation, its
 correction :math:`\hat\delta_i = \hat\Omega_{ij}\varphi_j` taken from the equation's
 strongest term.
 
@@ -188,8 +189,9 @@ def form_hypotheses(est, run, u) -> list[Hypothesis]:
 
 
 def _evidence_terms(est, phi, row, chosen) -> list[Term]:
-    """Terms ``chosen`` of correction row ``row``, by gain, shares within the equation."""
-    gain, estimate = est.term_gain_[row], est.term_estimate_[row]
+    """Terms ``chosen`` of correction row ``row``, by conditional gain, shares within the
+    equation."""
+    gain, estimate = est.term_conditional_gain_[row], est.term_estimate_[row]
     names = tuple(est.physics_.state_names) + tuple(est.physics_.input_names)
     total = float(np.sum(gain[chosen]))
     terms = [
@@ -218,15 +220,16 @@ def evidence_hypotheses(est, run, u, *, min_share: float = 0.1) -> list[Hypothes
         ``est.simulate(u)``.
     u : ndarray of shape (n_samples, n_inputs)
     min_share : float, default=0.1
-        Terms whose gain is at least this fraction of the largest are evidence.
+        Terms whose conditional gain (``term_conditional_gain_``: what a term adds beyond
+        the stronger ones) is at least this fraction of the largest are evidence.
 
     Returns
     -------
     list of Hypothesis
-        ``gain`` is the largest term gain of the equation (the fraction of the
+        ``gain`` is the largest conditional gain of the equation (the fraction of the
         physics-only cost its strongest term removes); empty when no term has any.
     """
-    gain = np.nan_to_num(np.asarray(est.term_gain_, float))
+    gain = np.nan_to_num(np.asarray(est.term_conditional_gain_, float))
     top = float(np.max(gain, initial=0.0))
     if top <= 0:
         return []
