@@ -61,6 +61,7 @@ class Hypothesis:
     sentence: str = ""
     correction: np.ndarray | None = field(default=None, compare=False, repr=False)
     gain: float = 0.0
+    source: str = "evidence"
 
 
 def feature_variables(feature: str, names: tuple[str, ...]) -> tuple[str, ...]:
@@ -182,9 +183,10 @@ def form_hypotheses(est, run, u) -> list[Hypothesis]:
         if not ranked[row]:
             continue
         equation = est.physics_.state_names[state]
-        hypotheses.append(
-            _hypothesis(state, equation, ranked[row], run.correction[:, state], run, signals)
+        hypothesis = _hypothesis(
+            state, equation, ranked[row], run.correction[:, state], run, signals
         )
+        hypotheses.append(replace(hypothesis, source="sparse δ"))
     return sorted(hypotheses, key=lambda h: -sum(t.contribution**2 for t in h.terms))
 
 

@@ -4,7 +4,12 @@ r"""The closed loop: residual -> evidence -> named effect -> refit -> before/aft
 2. **Evidence.** At that fit, every dictionary term's projected gain
    (:class:`~sk_offwhite._sparsity.TermEvidence`): what it would explain that no
    re-adjustment of the declared parameters can. The strongest terms make up the
-   hypotheses (:func:`~sk_offwhite.loop.evidence_hypotheses`).
+   hypotheses (:func:`~sk_offwhite.loop.evidence_hypotheses`). With ``fit_delta``, the
+   declared physics + sparse :math:`\delta` (support path, :math:`\gamma` by CV) adds the
+   hypotheses of its fitted correction (:func:`~sk_offwhite.loop.form_hypotheses`), only
+   when it beats the declared physics under CV by ``min_gain`` (else a note says so):
+   the linearised evidence misses effects far from the declared trajectory (an overflow
+   of a state that the declared physics never fills).
 3. **Candidates** from the hypotheses, the measured output range and the variables'
    physical kinds (:func:`~sk_offwhite.loop.propose_effects`), plus the strongest terms
    themselves promoted into the physics (:class:`~sk_offwhite.DictionaryTerm`).
@@ -12,10 +17,11 @@ r"""The closed loop: residual -> evidence -> named effect -> refit -> before/aft
    selection adds, among the ``beam`` best, the candidate that lowers the estimation error
    most while it lowers it by ``min_gain`` (when no candidate helps alone, pairs of the best
    are tried: effects such as Coulomb friction and a force offset only help together). The
-   nested sets of that order are cross-validated; the smallest within ``tolerance`` of the
-   best is kept if it beats the declared physics by ``min_gain``.
-5. Refit the augmented physics and, with ``fit_delta``, the declared and augmented physics
-   with a sparse :math:`\delta` (:math:`\gamma` chosen by CV on the support path).
+   sets of that order, and the nested sets of the candidates that helped alone in the order
+   of their gain, are cross-validated; the smallest within ``tolerance`` of the best is
+   kept if it beats the declared physics by ``min_gain``.
+5. Refit the augmented physics and, with ``fit_delta``, the augmented physics with a
+   sparse :math:`\delta` (:math:`\gamma` chosen by CV on the support path).
 6. **Never worse.** Every final model is cross-validated the same way; ``result.chosen``
    names the CV-best, and a model is never preferred to one with a lower CV error.
 
@@ -43,7 +49,7 @@ from .._path import GammaPath, fit_gamma_path
 from .._physics import Parameter
 from ..diagnose import analyse_residuals, range_violations
 from ._candidates import promoted_terms, propose_effects
-from ._hypotheses import evidence_hypotheses
+from ._hypotheses import evidence_hypotheses, form_hypotheses
 from ._scoring import MODEL_LABELS, held_out_rmse
 
 __all__ = ["LoopResult", "LoopSettings", "close_the_loop", "fit_continued", "warm_physics"]
@@ -105,7 +111,8 @@ class LoopResult:
     they failed). ``evidence`` is the physics-only fit with the dictionary the hypotheses
     come from; ``cv_errors`` maps each fitted model's key (``"baseline"``, ``"with_delta"``,
     ``"final"``, ``"final_with_delta"``) to its cross-validated RMSE, ``chosen`` is the
-    key of the lowest; ``failures`` one line per fit that failed.
+    key of the lowest; ``failures`` one line per fit that failed; ``notes`` what the loop
+    decided not to use and why.
     """
 
     physics: object
@@ -126,6 +133,7 @@ class LoopResult:
     cv_errors: dict = field(default_factory=dict)
     chosen: str = "baseline"
     failures: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
 
     @property
     def best(self) -> GreyBoxSparseRegressor:
@@ -320,23 +328,48 @@ def _best_pair(physics, pool, u, z, settings, base_rmse, failures):
     return [best]
 
 
+def _nested(ranked, base_rmse, settings):
+    """The nested sets of the candidates that helped alone, in the order of their gain
+    (each effect starts from its parameters fitted alone)."""
+    kept = [(c.effect, params) for r, c, params in ranked if r < base_rmse]
+    kept = kept[: settings.max_effects]
+    return [
+        (tuple(e for e, _ in kept[:k]), {n: p for _, ps in kept[:k] for n, p in ps.items()}, None)
+        for k in range(1, len(kept) + 1)
+    ]
+
+
+def _by_size(steps):
+    """``steps`` without repeated effect sets, smallest sets first (stable)."""
+    unique = {}
+    for step in steps:
+        unique.setdefault(frozenset(e.name for e in step[0]), step)
+    return sorted(unique.values(), key=lambda step: len(step[0]))
+
+
 def _smallest_within(scores: list[float], tolerance: float) -> int:
     """Index of the first score within ``tolerance`` (relative) of the smallest."""
     best = min(scores)
     return next(k for k, s in enumerate(scores) if s <= best * (1.0 + tolerance))
 
 
-def _select_effects(physics, candidates, u, z, settings, base_rmse, failures=None):
-    """Effect sets by forward selection, the nested sets chosen by CV RMSE.
+def _select_effects(
+    physics, candidates, u, z, settings, base_rmse, failures=None, declared_cv=None
+):
+    """Effect sets by forward selection and nested by single gain, chosen by CV RMSE.
 
-    Returns the chosen effects, the CV trail, the single-fit RMSEs and the effects'
-    fitted parameters (the start of the final fit).
+    Returns the chosen effects, the CV trail (starting with ``declared_cv``, computed when
+    ``None``), the single-fit RMSEs and the effects' fitted parameters (the start of the
+    final fit).
     """
     failures = [] if failures is None else failures
+    if declared_cv is None:
+        declared_cv = _cv_rmse(_estimator(physics, settings, cv=True), u, z, settings)
     ranked = _rank_alone(physics, candidates[: settings.max_candidates], u, z, settings, failures)
     singles = [(c.effect.name, r) for r, c, _ in ranked]
     steps = _forward(physics, ranked, u, z, settings, base_rmse, failures)
-    trail = [("declared physics", _cv_rmse(_estimator(physics, settings, cv=True), u, z, settings))]
+    steps = _by_size(steps + _nested(ranked, base_rmse, settings))
+    trail = [("declared physics", declared_cv)]
     for effects, warm, _ in steps:
         model = augment(physics, *effects).with_parameters(**warm)
         score = _cv_rmse(_estimator(model, settings, cv=True), u, z, settings)
@@ -382,6 +415,28 @@ def _candidates(physics, library, hypotheses, facts, run, u, settings):
     return list(unique.values())
 
 
+def _delta_hypotheses(start, library, u, z, settings, declared_cv, failures, notes):
+    """The declared physics + δ (path, estimator, CV error) and, when it beats the declared
+    physics under CV by ``min_gain``, the hypotheses its correction makes."""
+    fitted = _attempt(
+        failures, MODEL_LABELS["with_delta"], _fit_delta, start, library, u, z, settings
+    )
+    if fitted is None:
+        return None, None, np.inf, []
+    est, path = fitted
+    cv = _attempt(
+        failures, f"CV of {MODEL_LABELS['with_delta']}", _delta_cv, path, est, u, z, settings
+    )
+    cv = np.inf if cv is None else cv
+    if not cv < (1.0 - settings.min_gain) * declared_cv:
+        notes.append(
+            f"{MODEL_LABELS['with_delta']} does not beat the declared physics under CV "
+            f"({cv:.4g} against {declared_cv:.4g}): no hypothesis is read from its correction."
+        )
+        return est, path, cv, []
+    return est, path, cv, form_hypotheses(est, est.simulate(u), u)
+
+
 def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = None):
     """Run the whole loop on one estimation record ``(u, z)``; see the module docstring.
 
@@ -400,6 +455,7 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
     settings = settings or LoopSettings()
     u, z = np.asarray(u, float), np.asarray(z, float).reshape(len(u), -1)
     failures: list[str] = []
+    notes: list[str] = []
     baseline = fit_continued(_estimator(physics, settings), u, z, settings.horizon)
     start = warm_physics(physics, baseline)
     run = baseline.simulate(u)
@@ -410,39 +466,45 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
         if evidence is None
         else evidence_hypotheses(evidence, evidence.simulate(u), u, min_share=settings.min_share)
     )
+    declared_cv = _cv_rmse(_estimator(start, settings, cv=True), u, z, settings)
+    models, paths, cv_errors = {"baseline": baseline}, {}, {"baseline": declared_cv}
+    if settings.fit_delta:
+        est, path, cv, from_delta = _delta_hypotheses(
+            start, library, u, z, settings, declared_cv, failures, notes
+        )
+        models["with_delta"], paths["with_delta"] = est, path
+        if est is not None:
+            cv_errors["with_delta"] = cv
+        hypotheses = hypotheses + from_delta
     candidates = _candidates(start, library, hypotheses, facts, run, u, settings)
     effects, trail, singles, warm = _select_effects(
-        start, candidates, u, z, settings, _rmse(run.outputs, z), failures
+        start, candidates, u, z, settings, _rmse(run.outputs, z), failures, declared_cv
     )
+    notes += _equivalents(effects, singles, settings.tolerance)
     augmented = augment(start, *effects).with_parameters(**warm)
     final = _attempt(
         failures, "augmented physics", fit_continued, _estimator(augmented, settings), u, z,
         settings.horizon,
     ) or baseline  # fmt: skip
-    models = {"baseline": baseline, "final": final}
-    cv_errors = {"baseline": trail[0][1], "final": dict(trail).get(_label(effects), trail[0][1])}
-    paths = {}
+    models["final"] = final
+    cv_errors["final"] = dict(trail).get(_label(effects), declared_cv)
     if settings.fit_delta:
-        for key, base in (
-            ("with_delta", start),
-            ("final_with_delta", warm_physics(augmented, final)),
-        ):
-            fitted = _attempt(
-                failures, MODEL_LABELS[key], _fit_delta, base, library, u, z, settings
+        base = warm_physics(augmented, final)
+        key = "final_with_delta"
+        fitted = _attempt(failures, MODEL_LABELS[key], _fit_delta, base, library, u, z, settings)
+        models[key], paths[key] = fitted if fitted is not None else (None, None)
+        if models[key] is not None:
+            cv = _attempt(
+                failures,
+                f"CV of {MODEL_LABELS[key]}",
+                _delta_cv,
+                paths[key],
+                models[key],
+                u,
+                z,
+                settings,
             )
-            models[key], paths[key] = fitted if fitted is not None else (None, None)
-            if models[key] is not None:
-                cv = _attempt(
-                    failures,
-                    f"CV of {MODEL_LABELS[key]}",
-                    _delta_cv,
-                    paths[key],
-                    models[key],
-                    u,
-                    z,
-                    settings,
-                )
-                cv_errors[key] = np.inf if cv is None else cv
+            cv_errors[key] = np.inf if cv is None else cv
     return LoopResult(
         physics,
         augment(physics, *effects),
@@ -462,7 +524,28 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
         cv_errors,
         _choose(cv_errors),
         failures,
+        notes,
     )
+
+
+def _equivalents(effects, singles, tolerance: float) -> list[str]:
+    """Notes on candidates that, fitted alone, explain the record as well as a chosen one."""
+    alone = dict(singles)
+    notes = []
+    for effect in effects:
+        rmse = alone.get(effect.name, np.inf)
+        same = [
+            name
+            for name, value in singles
+            if name != effect.name and np.isfinite(rmse) and abs(value - rmse) <= tolerance * rmse
+        ]
+        if same:
+            notes.append(
+                f"`{effect.name}` alone fits the estimation record as well as "
+                f"{', '.join(f'`{n}`' for n in same)} (within {tolerance:.0%}): the data may "
+                "not tell them apart."
+            )
+    return notes
 
 
 def _label(effects) -> str:

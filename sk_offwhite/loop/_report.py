@@ -91,12 +91,13 @@ def _hypothesis_lines(result) -> list[str]:
         "",
     ]
     for hyp in result.hypotheses:
-        lines += [
-            f"- **{hyp.sentence}** (strongest term's gain {hyp.gain:.1%})",
-            "",
-            "  | term | Ω̂ (linearised) | RMS contribution | share of the gain |",
-            "  |---|---|---|---|",
-        ]
+        if hyp.source == "evidence":
+            head = f"(evidence; strongest term's gain {hyp.gain:.1%})"
+            columns = "  | term | Ω̂ (linearised) | RMS contribution | share of the gain |"
+        else:
+            head = f"({hyp.source} on the declared physics)"
+            columns = "  | term | Ω (fitted) | RMS contribution | share |"
+        lines += [f"- **{hyp.sentence}** {head}", "", columns, "  |---|---|---|---|"]
         lines += [
             f"  | {t.feature} | {t.coefficient:.4g} | {t.contribution:.4g} | {t.share:.1%} |"
             for t in hyp.terms[:8]
@@ -203,6 +204,7 @@ def write_report(result, rows, records: dict, directory, *, title: str, notes=()
     lines += _residual_section(result, records, "final")
     lines += ["## What the declared physics cannot explain", ""]
     lines += _hypothesis_lines(result)
+    lines += [f"- {note}" for note in result.notes] + ([""] if result.notes else [])
     lines += ["![correction](correction.png)", ""] if has_delta_fig else []
     lines += ["## Effects tried and added", ""] + _candidate_lines(result) + [""]
     lines += _selection_lines(result) + [""]
