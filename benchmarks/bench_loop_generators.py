@@ -98,8 +98,12 @@ def run(name: str, short: bool, delta: bool) -> None:
     if parameter is not None and parameter[0] in result.final.parameters_:
         truth = data.hidden_effect["rates"][parameter[1]]
         effect = f"; {parameter[0]} {result.final.parameters_[parameter[0]]:.4g} (true {truth:.4g})"
+    hidden = data.hidden_effect
+    named = [h for h in result.hypotheses if h.equation_index == hidden["equation"]]
+    sign = "no hypothesis" if not named else f"sign {named[0].sign} (true {hidden['sign']})"
     print(
-        f"{name}: n={len(data.u)}; effects {[e.name for e in result.effects]}; right kind "
+        f"{name}: n={len(data.u)}; hypothesis on {hidden['equation']}: {sign}; "
+        f"effects {[e.name for e in result.effects]}; right kind "
         f"{any(isinstance(e, kind) for e in result.effects)}{effect}; declared parameters "
         f"within {_parameter_error(result, data):.2%}; validation RMSE "
         f"{rmse['declared physics']:.4g} -> {rmse['augmented physics']:.4g} "

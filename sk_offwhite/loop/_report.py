@@ -60,7 +60,8 @@ def _figure_correction(result, u, path: Path) -> bool:
         variable = hyp.region[0] if hyp.region else (hyp.variables or names[:1])[0]
         ax.plot(signals[:, names.index(variable)], hyp.correction, ".", ms=2)
         ax.set_xlabel(f"{variable} (simulated)")
-        ax.set_ylabel(f"linearised δ, {hyp.equation} equation")
+        what = "linearised δ" if hyp.source == "evidence" else "fitted δ"
+        ax.set_ylabel(f"{what}, {hyp.equation} equation")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
