@@ -18,6 +18,8 @@ import argparse
 import time
 import warnings
 
+import jax
+
 from sk_offwhite import (
     DeadZone,
     Friction,
@@ -120,6 +122,7 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     for name in args.names or SYSTEMS:
         run(name, args.short, args.delta)
+        jax.clear_caches()  # each candidate compiles its own program: release them
 
 
 if __name__ == "__main__":

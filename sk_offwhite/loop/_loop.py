@@ -304,7 +304,7 @@ def _forward(physics, ranked, u, z, settings, base_rmse, failures):
                 trials.append((fitted[0], effect, fitted[1]))
         if not trials:
             break
-        rmse, effect, params = min(trials, key=lambda t: t[0])
+        rmse, effect, params = min(trials, key=lambda t: t[0] * _handicap(t[1], settings))
         if rmse > (1.0 - settings.min_gain) * current_rmse:
             break
         current, current_rmse = [*current, effect], rmse
