@@ -380,7 +380,7 @@ def _select_effects(
     return steps[k - 1][0], trail, singles, steps[k - 1][1]
 
 
-def _delta_cv(path, est, u, z, settings) -> float:
+def _delta_cv(est, u, z, settings) -> float:
     """CV RMSE of a fitted model with δ at its chosen γ, scored as the trail is."""
     template = clone(est).set_params(horizon=settings.cv_horizon)
     return _cv_rmse(template, u, z, settings)
@@ -415,26 +415,36 @@ def _candidates(physics, library, hypotheses, facts, run, u, settings):
     return list(unique.values())
 
 
-def _delta_hypotheses(start, library, u, z, settings, declared_cv, failures, notes):
-    """The declared physics + δ (path, estimator, CV error) and, when it beats the declared
-    physics under CV by ``min_gain``, the hypotheses its correction makes."""
-    fitted = _attempt(
-        failures, MODEL_LABELS["with_delta"], _fit_delta, start, library, u, z, settings
-    )
+def _read_evidence(physics, library, u, z, settings, failures):
+    """The physics-only fit with the dictionary's evidence and its hypotheses."""
+    evidence = _attempt(failures, "evidence", _evidence, physics, library, u, z, settings)
+    if evidence is None:
+        return None, []
+    run = evidence.simulate(u)
+    return evidence, evidence_hypotheses(evidence, run, u, min_share=settings.min_share)
+
+
+def _scored_delta(key, physics, library, u, z, settings, failures):
+    """``(estimator, path, CV RMSE)`` of ``physics`` + δ (``None, None, inf`` on failure)."""
+    fitted = _attempt(failures, MODEL_LABELS[key], _fit_delta, physics, library, u, z, settings)
     if fitted is None:
-        return None, None, np.inf, []
-    est, path = fitted
-    cv = _attempt(
-        failures, f"CV of {MODEL_LABELS['with_delta']}", _delta_cv, path, est, u, z, settings
-    )
-    cv = np.inf if cv is None else cv
+        return None, None, np.inf
+    cv = _attempt(failures, f"CV of {MODEL_LABELS[key]}", _delta_cv, fitted[0], u, z, settings)
+    return fitted[0], fitted[1], np.inf if cv is None else cv
+
+
+def _delta_hypotheses(est, u, cv, declared_cv, settings, notes):
+    """The hypotheses of the declared physics + δ when it beats the declared physics under
+    CV by ``min_gain``; else a note says why there are none."""
+    if est is None:
+        return []
     if not cv < (1.0 - settings.min_gain) * declared_cv:
         notes.append(
             f"{MODEL_LABELS['with_delta']} does not beat the declared physics under CV "
             f"({cv:.4g} against {declared_cv:.4g}): no hypothesis is read from its correction."
         )
-        return est, path, cv, []
-    return est, path, cv, form_hypotheses(est, est.simulate(u), u)
+        return []
+    return form_hypotheses(est, est.simulate(u), u)
 
 
 def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = None):
@@ -460,22 +470,14 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
     start = warm_physics(physics, baseline)
     run = baseline.simulate(u)
     facts = range_violations(z, run.outputs, _output_names(physics, z.shape[1]))
-    evidence = _attempt(failures, "evidence", _evidence, start, library, u, z, settings)
-    hypotheses = (
-        []
-        if evidence is None
-        else evidence_hypotheses(evidence, evidence.simulate(u), u, min_share=settings.min_share)
-    )
+    evidence, hypotheses = _read_evidence(start, library, u, z, settings, failures)
     declared_cv = _cv_rmse(_estimator(start, settings, cv=True), u, z, settings)
-    models, paths, cv_errors = {"baseline": baseline}, {}, {"baseline": declared_cv}
+    fits = {"baseline": (baseline, None, declared_cv)}
     if settings.fit_delta:
-        est, path, cv, from_delta = _delta_hypotheses(
-            start, library, u, z, settings, declared_cv, failures, notes
+        fits["with_delta"] = _scored_delta("with_delta", start, library, u, z, settings, failures)
+        hypotheses = hypotheses + _delta_hypotheses(
+            fits["with_delta"][0], u, fits["with_delta"][2], declared_cv, settings, notes
         )
-        models["with_delta"], paths["with_delta"] = est, path
-        if est is not None:
-            cv_errors["with_delta"] = cv
-        hypotheses = hypotheses + from_delta
     candidates = _candidates(start, library, hypotheses, facts, run, u, settings)
     effects, trail, singles, warm = _select_effects(
         start, candidates, u, z, settings, _rmse(run.outputs, z), failures, declared_cv
@@ -486,25 +488,14 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
         failures, "augmented physics", fit_continued, _estimator(augmented, settings), u, z,
         settings.horizon,
     ) or baseline  # fmt: skip
-    models["final"] = final
-    cv_errors["final"] = dict(trail).get(_label(effects), declared_cv)
+    fits["final"] = (final, None, dict(trail).get(_label(effects), declared_cv))
     if settings.fit_delta:
-        base = warm_physics(augmented, final)
-        key = "final_with_delta"
-        fitted = _attempt(failures, MODEL_LABELS[key], _fit_delta, base, library, u, z, settings)
-        models[key], paths[key] = fitted if fitted is not None else (None, None)
-        if models[key] is not None:
-            cv = _attempt(
-                failures,
-                f"CV of {MODEL_LABELS[key]}",
-                _delta_cv,
-                paths[key],
-                models[key],
-                u,
-                z,
-                settings,
-            )
-            cv_errors[key] = np.inf if cv is None else cv
+        fits["final_with_delta"] = _scored_delta(
+            "final_with_delta", warm_physics(augmented, final), library, u, z, settings, failures
+        )
+    models = {key: fit[0] for key, fit in fits.items()}
+    paths = {key: fit[1] for key, fit in fits.items()}
+    cv_errors = {key: fit[2] for key, fit in fits.items() if fit[0] is not None}
     return LoopResult(
         physics,
         augment(physics, *effects),
