@@ -108,7 +108,9 @@ def _gains(hypothesis, states, names) -> list[Candidate]:
 
 def _fitted_start(effect: Effect, hypothesis: Hypothesis, states, u, dt: float):
     """``effect`` with its linear (first) parameter at the least-squares fit of its term to
-    the hypothesis' correction (per unit time), kept inside the parameter's bounds."""
+    the hypothesis' correction (per unit time); unchanged when that fit has no finite
+    value or lies outside the parameter's bounds. Effects are rebuilt from their
+    attributes, which are their constructor's arguments."""
     basis = effect.basis(states, u) if hasattr(effect, "basis") else None
     if basis is None or hypothesis.correction is None:
         return effect
@@ -118,23 +120,15 @@ def _fitted_start(effect: Effect, hypothesis: Hypothesis, states, u, dt: float):
         return effect
     value = float(basis @ target) / norm
     name, spec = next(iter(effect.parameters().items()))
-    lower = spec.bounds[0]
-    if lower is not None and value <= lower:
-        value = lower + 1e-3 * abs(float(basis @ target)) / norm + 1e-12
+    lower, upper = spec.bounds
+    if (lower is not None and value <= lower) or (upper is not None and value >= upper):
+        return effect  # the correction points the other way: keep the default start
     field = name[len(effect.name) + 1 :]
-    return type(effect)(**{**_init_args(effect), field: value})
-
-
-def _init_args(effect: Effect) -> dict:
-    """Constructor arguments of an effect (its attributes)."""
-    args = dict(vars(effect))
-    if isinstance(effect, Friction) and args.get("velocity") == args.get("state"):
-        args.pop("velocity")
-    return args
+    return type(effect)(**{**vars(effect), field: value})
 
 
 def _mechanical(hypothesis, states, names, kinds: Kinds) -> list[Candidate]:
-    """Friction, drag, stiffness and an offset in a velocity's (or rate's) equation."""
+    """Friction, drag and a stiffness in a velocity's (or rate's) equation."""
     i, name = hypothesis.equation_index, hypothesis.equation
     kind = kinds.states[i]
     one_signed = np.all(states[:, i] >= 0) or np.all(states[:, i] <= 0)
