@@ -19,7 +19,7 @@ from sk_offwhite.datasets import (
     make_duffing_oscillator,
     make_pendulum_drag,
 )
-from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
+from sk_offwhite.loop import LoopSettings, close_the_loop, score_models, write_report
 
 SETTINGS = LoopSettings(n_folds=2, max_iter=100, fit_delta=False, max_candidates=6)
 
@@ -72,3 +72,12 @@ def test_validation_error_is_cut_and_the_choice_is_never_worse(run):
     assert rmse["augmented physics"] < 0.5 * rmse["declared physics"]
     assert result.cv_errors[result.chosen] == min(result.cv_errors.values())
     assert result.chosen == "final"
+
+
+def test_the_report_is_written_without_the_sparse_fits(run, tmp_path):
+    data, result, _, parameter, _ = run
+    records = {"estimation": (data.u, data.z), "validation": (data.u_val, data.z_val)}
+    path = write_report(result, score_models(result, records), records, tmp_path, title="t")
+    text = path.read_text()
+    assert parameter in text and "(chosen)" in text and "## Fits that failed" in text
+    assert "Not fitted (`fit_delta=False`" in text
