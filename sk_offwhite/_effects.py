@@ -499,11 +499,25 @@ class DictionaryTerm(AdditiveEffect):
         return (DictionaryTerm, self.state, library, self.column, self.coefficient, self.name)
 
 
-class AugmentedStep:
-    """``step`` of an augmented model: input effects, the base step, then state effects."""
+class _EffectChain:
+    """A base map and the effects applied around it; compared by value (a ``jit`` static
+    argument), picklable."""
 
     def __init__(self, base, effects: tuple[Effect, ...]):
         self.base, self.effects = base, effects
+
+    def __eq__(self, other) -> bool:
+        return type(other) is type(self) and (self.base, self.effects) == (
+            other.base,
+            other.effects,
+        )
+
+    def __hash__(self) -> int:
+        return hash((type(self), self.base, self.effects))
+
+
+class AugmentedStep(_EffectChain):
+    """``step`` of an augmented model: input effects, the base step, then state effects."""
 
     def __call__(self, x, u, theta):
         u_seen = u
@@ -514,17 +528,8 @@ class AugmentedStep:
             x_next = effect.apply_state(x, u, x_next, theta)
         return x_next
 
-    def __eq__(self, other) -> bool:
-        return isinstance(other, AugmentedStep) and (self.base, self.effects) == (
-            other.base,
-            other.effects,
-        )
 
-    def __hash__(self) -> int:
-        return hash((AugmentedStep, self.base, self.effects))
-
-
-class AugmentedOutput(AugmentedStep):
+class AugmentedOutput(_EffectChain):
     """``output`` of an augmented model: the base map, then each output effect in turn."""
 
     def __call__(self, x, u, theta):
@@ -534,13 +539,13 @@ class AugmentedOutput(AugmentedStep):
         return z
 
 
-class AugmentedRhs:
+class AugmentedRhs(_EffectChain):
     """Right-hand side of an augmented continuous-time model: input effects, the declared
     right-hand side, then the additive terms."""
 
     def __init__(self, base, effects: tuple[Effect, ...]):
-        self.base, self.effects = base, effects
-        self.__name__ = getattr(base, "__name__", "rhs")
+        super().__init__(base, effects)
+        self.__name__ = getattr(base, "__name__", "rhs")  # names the discretised step
 
     def __call__(self, x, u, theta):
         u_seen = u
@@ -551,15 +556,6 @@ class AugmentedRhs:
             if isinstance(effect, AdditiveEffect):
                 rate = rate.at[effect.state].add(effect.term(x, u, theta))
         return rate
-
-    def __eq__(self, other) -> bool:
-        return isinstance(other, AugmentedRhs) and (self.base, self.effects) == (
-            other.base,
-            other.effects,
-        )
-
-    def __hash__(self) -> int:
-        return hash((AugmentedRhs, self.base, self.effects))
 
 
 def time_step(physics: PhysicsModel) -> float:

@@ -45,7 +45,7 @@ from .._effects import (
 from .._kinds import LEVEL_KINDS, VELOCITY_KINDS, Kinds
 from ._hypotheses import Hypothesis
 
-__all__ = ["Candidate", "promoted_terms", "propose_effects"]
+__all__ = ["Candidate", "promoted_terms", "propose_effects", "unique_by_name"]
 
 CONSTANT_FEATURE = "1"
 """Name of the constant term of pysindy libraries (``include_bias=True``)."""
@@ -127,12 +127,18 @@ def _fitted_start(effect: Effect, hypothesis: Hypothesis, states, u, dt: float):
     return type(effect)(**{**vars(effect), field: value})
 
 
+def _one_signed(column: np.ndarray) -> bool:
+    """The variable never changes sign on the record (a level, an amount)."""
+    return bool(np.all(column >= 0) or np.all(column <= 0))
+
+
 def _mechanical(hypothesis, states, names, kinds: Kinds) -> list[Candidate]:
     """Friction, drag and a stiffness in a velocity's (or rate's) equation."""
     i, name = hypothesis.equation_index, hypothesis.equation
     kind = kinds.states[i]
-    one_signed = np.all(states[:, i] >= 0) or np.all(states[:, i] <= 0)
-    generic_velocity = kind == "generic" and name in hypothesis.variables and not one_signed
+    generic_velocity = (
+        kind == "generic" and name in hypothesis.variables and not _one_signed(states[:, i])
+    )
     if kind not in VELOCITY_KINDS and not generic_velocity:
         return []
     width = 0.01 * float(np.sqrt(np.mean(states[:, i] ** 2)) or 1.0)
@@ -244,20 +250,27 @@ def _ceilings(range_facts, output_names, measured, names) -> list[Candidate]:
 def _level_effects(hypothesis, states, names, kinds: Kinds) -> list[Candidate]:
     """Overflows and leaks, for levels and one-signed generic states."""
     i = hypothesis.equation_index
-    one_signed = np.all(states[:, i] >= 0) or np.all(states[:, i] <= 0)
-    if kinds.states[i] not in LEVEL_KINDS and not (kinds.states[i] == "generic" and one_signed):
+    if not _is_level(i, states, kinds):
         return []
     if hypothesis.sign < 0:
         return _losses(hypothesis, states, names)
-    return [c for c in _gains(hypothesis, states, names) if _is_level(c.effect, states, kinds)]
+    return [
+        c for c in _gains(hypothesis, states, names) if _is_level(c.effect.state, states, kinds)
+    ]
 
 
-def _is_level(effect, states, kinds: Kinds) -> bool:
-    kind = kinds.states[effect.state]
-    column = states[:, effect.state]
-    return kind in LEVEL_KINDS or (
-        kind == "generic" and bool(np.all(column >= 0) or np.all(column <= 0))
-    )
+def _is_level(state: int, states, kinds: Kinds) -> bool:
+    """A declared level, or a generic state that never changes sign."""
+    kind = kinds.states[state]
+    return kind in LEVEL_KINDS or (kind == "generic" and _one_signed(states[:, state]))
+
+
+def unique_by_name(candidates) -> list[Candidate]:
+    """``candidates`` without repeated effect names (the first proposal of each kept)."""
+    unique = {}
+    for candidate in candidates:
+        unique.setdefault(candidate.effect.name, candidate)
+    return list(unique.values())
 
 
 def propose_effects(
@@ -315,7 +328,4 @@ def propose_effects(
     if measured is not None:
         proposals += _offsets(hypotheses, list(measured), output_names)
     proposals += _ceilings(range_facts, output_names, measured, names)
-    unique = {}
-    for candidate in proposals:
-        unique.setdefault(candidate.effect.name, candidate)
-    return list(unique.values())
+    return unique_by_name(proposals)

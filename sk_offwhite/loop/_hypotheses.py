@@ -87,7 +87,7 @@ def _features(est, run, u) -> np.ndarray:
 def rank_terms(est, run, u) -> list[list[Term]]:
     """Selected terms of each corrected equation, largest contribution first."""
     contributions = _features(est, run, u)
-    names = tuple(est.physics_.state_names) + tuple(est.physics_.input_names)
+    names = _variable_names(est)
     ranked = []
     for row, state in enumerate(est.delta_states_):
         rms = np.sqrt(np.mean(contributions[:, row, :] ** 2, axis=0))
@@ -169,8 +169,13 @@ def _hypothesis(state, equation, terms, delta, run, signals) -> Hypothesis:
     )
 
 
+def _variable_names(est) -> tuple[str, ...]:
+    """Names of ``v = [x; u]`` the dictionary is evaluated on."""
+    return tuple(est.physics_.state_names) + tuple(est.physics_.input_names)
+
+
 def _signals(est, run, u) -> dict:
-    names = tuple(est.physics_.state_names) + tuple(est.physics_.input_names)
+    names = _variable_names(est)
     return dict(zip(names, np.hstack([run.states, np.asarray(u, float)]).T, strict=True))
 
 
@@ -194,7 +199,7 @@ def _evidence_terms(est, phi, row, chosen) -> list[Term]:
     """Terms ``chosen`` of correction row ``row``, by conditional gain, shares within the
     equation."""
     gain, estimate = est.term_conditional_gain_[row], est.term_estimate_[row]
-    names = tuple(est.physics_.state_names) + tuple(est.physics_.input_names)
+    names = _variable_names(est)
     total = float(np.sum(gain[chosen]))
     terms = [
         Term(

@@ -35,6 +35,7 @@ only scored.
 
 from __future__ import annotations
 
+import copy
 import warnings
 from dataclasses import dataclass, field
 
@@ -48,7 +49,7 @@ from .._kinds import physical_kinds
 from .._path import GammaPath, fit_gamma_path
 from .._physics import Parameter
 from ..diagnose import analyse_residuals, range_violations
-from ._candidates import promoted_terms, propose_effects
+from ._candidates import promoted_terms, propose_effects, unique_by_name
 from ._hypotheses import evidence_hypotheses, form_hypotheses
 from ._scoring import MODEL_LABELS, held_out_rmse
 
@@ -205,10 +206,12 @@ def _attempt(failures: list, label: str, function, *args):
     return value
 
 
-def _fit_delta(physics, library, u, z, settings):
+def _fit_delta(physics, library, u, z, settings, evidence=None):
     """Physics + δ on the support path, γ chosen by CV RMSE; the fitted estimator and the
-    path (``None`` for a single γ, fitted directly)."""
-    est = _estimator(
+    path (``None`` for a single γ, fitted directly). ``evidence``, an estimator with the
+    same settings fitted to its physics-only stage, is refitted along the path, which then
+    reuses that stage (the estimator's cache) instead of computing it again."""
+    est = evidence or _estimator(
         physics, settings, cv=True, library=library, delta_states=settings.delta_states
     )
     if settings.gammas is not None and len(settings.gammas) == 1:
@@ -408,11 +411,9 @@ def _candidates(physics, library, hypotheses, facts, run, u, settings):
         kinds=physical_kinds(physics),
         dt=dt,
     )
-    found += promoted_terms(hypotheses, library, names, dt, settings.n_promoted)
-    unique = {}
-    for candidate in found:
-        unique.setdefault(candidate.effect.name, candidate)
-    return list(unique.values())
+    return unique_by_name(
+        found + promoted_terms(hypotheses, library, names, dt, settings.n_promoted)
+    )
 
 
 def _read_evidence(physics, library, u, z, settings, failures):
@@ -424,9 +425,11 @@ def _read_evidence(physics, library, u, z, settings, failures):
     return evidence, evidence_hypotheses(evidence, run, u, min_share=settings.min_share)
 
 
-def _scored_delta(key, physics, library, u, z, settings, failures):
+def _scored_delta(key, physics, library, u, z, settings, failures, evidence=None):
     """``(estimator, path, CV RMSE)`` of ``physics`` + δ (``None, None, inf`` on failure)."""
-    fitted = _attempt(failures, MODEL_LABELS[key], _fit_delta, physics, library, u, z, settings)
+    fitted = _attempt(
+        failures, MODEL_LABELS[key], _fit_delta, physics, library, u, z, settings, evidence
+    )
     if fitted is None:
         return None, None, np.inf
     cv = _attempt(failures, f"CV of {MODEL_LABELS[key]}", _delta_cv, fitted[0], u, z, settings)
@@ -471,10 +474,15 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
     run = baseline.simulate(u)
     facts = range_violations(z, run.outputs, _output_names(physics, z.shape[1]))
     evidence, hypotheses = _read_evidence(start, library, u, z, settings, failures)
+    snapshot = copy.copy(evidence)  # the physics-only fit, kept when the path refits it
     declared_cv = _cv_rmse(_estimator(start, settings, cv=True), u, z, settings)
     fits = {"baseline": (baseline, None, declared_cv)}
     if settings.fit_delta:
-        fits["with_delta"] = _scored_delta("with_delta", start, library, u, z, settings, failures)
+        # the evidence estimator has the path's settings when CV fits whole blocks
+        reuse = evidence if settings.cv_horizon is None else None
+        fits["with_delta"] = _scored_delta(
+            "with_delta", start, library, u, z, settings, failures, reuse
+        )
         hypotheses = hypotheses + _delta_hypotheses(
             fits["with_delta"][0], u, fits["with_delta"][2], declared_cv, settings, notes
         )
@@ -511,7 +519,7 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
         effects,
         singles,
         paths.get("final_with_delta"),
-        evidence,
+        snapshot,
         cv_errors,
         _choose(cv_errors),
         failures,
