@@ -26,7 +26,7 @@ import jax.numpy as jnp
 
 from .._layout import Layout
 from .._objective import residuals, rollout_segments
-from .._optim import Problem
+from .._optim import Problem, linearised
 from .._rollout import Model, model_step, theta_dict
 
 __all__ = ["Perturbation", "cost_hessian", "mixed_derivatives", "output_jacobian"]
@@ -69,7 +69,7 @@ def simulated_outputs(free, problem: Problem, model: Model, layout: Layout):
 def output_jacobian(free, problem: Problem, *, model: Model, layout: Layout):
     r"""Outputs :math:`\hat z` and :math:`\partial \hat z/\partial p` (last axis), forward mode."""
     fun = partial(simulated_outputs, problem=problem, model=model, layout=layout)
-    return fun(free), jax.jacfwd(fun)(free)
+    return linearised(fun, free)
 
 
 def disturbed_outputs(model: Model, params: dict, segments, disturbance):
