@@ -29,6 +29,7 @@ __all__ = [
     "free_run",
     "jit_simulate",
     "model_step",
+    "multiply_add",
     "simulate",
     "theta_dict",
 ]
@@ -75,8 +76,25 @@ def correction(model: Model, params: dict, x, u):
         return jnp.zeros_like(x)
     inner = {name: params[name] for name in model.inner_names}
     features = model.basis(inner, jnp.concatenate([x, u]))
-    delta = jnp.sum(params["omega"] * features, axis=1)
-    return jnp.zeros_like(x).at[jnp.asarray(model.delta_states)].add(delta)
+    delta = multiply_add(params["omega"], features)
+    zero = jnp.zeros((), x.dtype)  # built entry by entry: a scatter would not fuse
+    rows = [[k for k, s in enumerate(model.delta_states) if s == i] for i in range(x.shape[0])]
+    return jnp.stack([sum((delta[k] for k in ks), zero) for ks in rows])
+
+
+def multiply_add(weights, features):
+    r""":math:`\sum_j W_{ij} F_{ij}` for arrays of shape ``(n, m)``, as a chain of ``m``
+    multiply-adds.
+
+    Inside a ``scan``, XLA on CPU fuses this chain with the rest of the step, but not a
+    reduction (``jnp.sum``, ``@``, ``einsum``) in the forward-mode derivative of the step:
+    measured 80-100x slower than the simulation itself for a 20-term dictionary, against
+    about 1.2x with the chain.
+    """
+    total = jnp.zeros(features.shape[:1], features.dtype)
+    for j in range(features.shape[1]):
+        total = total + weights[:, j] * features[:, j]
+    return total
 
 
 def model_step(model: Model, params: dict, x, u):

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import copy
 import pickle
+import subprocess
+import sys
 import warnings
 
 import jax
@@ -438,3 +440,12 @@ def test_input_validation():
     ridge = compile_basis(RidgeBasis(("tanh",)), FEATURES, n_delta=1, random_state=0)
     with pytest.raises(KeyError, match="'W' and 'B'"):
         ridge.evaluate({"W": ridge.init_params["W"]}, jnp.zeros(3))
+
+
+def test_pysindy_is_imported_on_the_first_dictionary_not_with_the_package():
+    code = (
+        "import sys, sk_offwhite; assert 'pysindy' not in sys.modules; "
+        "import pysindy as ps; "
+        "sk_offwhite.compile_basis(ps.PolynomialLibrary(degree=2), ['x', 'u'], 1)"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True)
