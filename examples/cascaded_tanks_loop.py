@@ -6,12 +6,15 @@ explicit physics (chosen by cross-validation on the estimation record only), ref
 the sparse corrections that show what is left, and writes a report with the errors before
 and after on both records under both scoring protocols and the CV-best model.
 
-Run: ``python examples/cascaded_tanks_loop.py [--out reports/cascaded_tanks] [--quick]``.
+Run: ``python examples/cascaded_tanks_loop.py [--out DIR] [--quick] [--quiet]`` (``DIR``
+defaults to ``reports/cascaded_tanks``); the stages of the loop are logged as they run
+(``--quiet`` switches that off).
 """
 
 from __future__ import annotations
 
 import argparse
+import logging
 import time
 
 import pysindy as ps
@@ -35,7 +38,11 @@ def main(argv=None):
         "runs (for CI), "
         "not the result",
     )
+    parser.add_argument("--quiet", action="store_true", help="no progress messages")
     args = parser.parse_args(argv)
+    if not args.quiet:
+        logging.basicConfig(format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
+        logging.getLogger("sk_offwhite").setLevel(logging.INFO)
     data = load_cascaded_tanks()
     physics = cascaded_tanks_physics(fixed={"k4": 0.05})
     settings = LoopSettings(

@@ -15,7 +15,9 @@ from ._effects import (
     Overflow,
     QuadraticDrag,
     Stiffness,
+    Switched,
     augment,
+    switched,
 )
 from ._estimator import GreyBoxSparseRegressor, expected_failed_checks
 from ._path import GammaPath, fit_gamma_path, gamma_grid
@@ -40,10 +42,12 @@ __all__ = [
     "QuadraticDrag",
     "RidgeBasis",
     "Stiffness",
+    "Switched",
     "augment",
     "compile_basis",
     "expected_failed_checks",
     "fit_gamma_path",
     "gamma_grid",
+    "switched",
 ]
 __version__ = "0.1.0.dev0"

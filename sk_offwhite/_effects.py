@@ -38,8 +38,12 @@ __all__ = [
     "Overflow",
     "QuadraticDrag",
     "Stiffness",
+    "Switched",
+    "SwitchedTerm",
     "augment",
     "hinge",
+    "switched",
+    "switches",
     "time_step",
 ]
 
@@ -497,6 +501,80 @@ class DictionaryTerm(AdditiveEffect):
 
         library = _library_key(self.library, self.input_features, 1) or id(self.library)
         return (DictionaryTerm, self.state, library, self.column, self.coefficient, self.name)
+
+
+class Switched(Effect):
+    r"""``effect`` behind a switch: a fixed parameter ``{name}_on`` (:math:`s`) says
+    whether it acts,
+
+    .. math::
+
+        u \leftarrow E(u) \text{ if } s > \tfrac12 \text{ else } u
+
+    (and likewise for the state update and the output), so :math:`s = 1` is the effect,
+    exactly as :func:`augment` adds it, and :math:`s = 0` the model without it. The switch
+    is a parameter value, not structure: models that differ only in which effects are on
+    share one compiled program (the loop fits every candidate set this way). An effect that
+    is off has zero derivatives (even where it would not be finite); a fit leaves its
+    parameters where they start.
+    """
+
+    def __init__(self, effect: Effect):
+        if not isinstance(effect, Effect) or isinstance(effect, Switched):
+            raise TypeError(f"Switched takes an Effect that is not switched, got {effect!r}.")
+        self.effect, self.name, self.target = effect, effect.name, effect.target
+
+    @property
+    def switch(self) -> str:
+        """Name of the switch parameter."""
+        return f"{self.name}_on"
+
+    def parameters(self) -> dict[str, Parameter]:
+        return {**self.effect.parameters(), self.switch: Parameter(1.0, (0.0, 1.0), fixed=True)}
+
+    def on(self, theta):
+        """Whether the effect acts (a traced boolean)."""
+        return theta[self.switch] > 0.5
+
+    def apply_input(self, x, u, theta):
+        return jnp.where(self.on(theta), self.effect.apply_input(x, u, theta), u)
+
+    def apply_state(self, x, u, x_next, theta):
+        changed = self.effect.apply_state(x, u, x_next, theta)
+        return jnp.where(self.on(theta), changed, x_next)
+
+    def apply_output(self, x, u, z, theta):
+        return jnp.where(self.on(theta), self.effect.apply_output(x, u, z, theta), z)
+
+    def describe(self, state_names, output_names, values=None) -> str:
+        return self.effect.describe(state_names, output_names, values)
+
+
+class SwitchedTerm(Switched, AdditiveEffect):
+    """:class:`Switched` for an :class:`AdditiveEffect`: the term, or zero when off (inside
+    the integrated right-hand side of a continuous-time model, like the term itself)."""
+
+    def __init__(self, effect: AdditiveEffect):
+        super().__init__(effect)
+        self.state = effect.state
+
+    def term(self, x, u, theta):
+        return jnp.where(self.on(theta), self.effect.term(x, u, theta), 0.0)
+
+    def basis(self, x, u):
+        return self.effect.basis(x, u)
+
+
+def switched(effect: Effect) -> Switched:
+    """``effect`` behind a switch (:class:`SwitchedTerm` for an additive term)."""
+    return SwitchedTerm(effect) if isinstance(effect, AdditiveEffect) else Switched(effect)
+
+
+def switches(effects, on) -> dict[str, Parameter]:
+    """Switch parameters of the switched ``effects``: ``1`` for those in ``on``, else ``0``
+    (to pass to :meth:`PhysicsModel.with_parameters`)."""
+    names = {e.name for e in on}
+    return {e.switch: Parameter(float(e.name in names), (0.0, 1.0), fixed=True) for e in effects}
 
 
 class _EffectChain:

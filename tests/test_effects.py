@@ -9,8 +9,22 @@ import pytest
 from conftest import tanks_physics
 
 from sk_offwhite import GreyBoxSparseRegressor
-from sk_offwhite._effects import Friction, Leak, OutputSaturation, Overflow, augment
-from sk_offwhite.datasets import cascaded_tanks_physics, make_cascaded_tanks
+from sk_offwhite._effects import (
+    AdditiveEffect,
+    Bias,
+    Friction,
+    Leak,
+    OutputSaturation,
+    Overflow,
+    augment,
+    switched,
+    switches,
+)
+from sk_offwhite._optim import _lm_linearise
+from sk_offwhite._problem import build_model
+from sk_offwhite._rollout import jit_simulate
+from sk_offwhite.datasets import cascaded_tanks_physics, make_cascaded_tanks, make_coulomb_drive
+from sk_offwhite.loop._switchboard import SeparateModels, Switchboard
 
 
 def _theta(physics):
@@ -87,3 +101,61 @@ def test_the_missing_overflow_added_as_an_effect_cuts_the_validation_error():
     after, est = validation_rmse(augment(physics, Overflow(0, 9.0, sink=1)))
     assert after < 0.5 * before
     assert 0.0 < est.parameters_["overflow_fraction"] < 1.0
+
+
+def _outputs(physics, u):
+    model = build_model(physics, None, ())
+    with jax.enable_x64(True):
+        params = {"theta": jnp.asarray(physics.parameter_values())}
+        outputs = jit_simulate(model, params, jnp.asarray(physics.x0), jnp.asarray(u))[1]
+        return np.asarray(outputs)
+
+
+@pytest.mark.parametrize("continuous", [False, True])
+def test_a_switched_effect_is_the_effect_when_on_and_nothing_when_off(continuous):
+    data = make_coulomb_drive(n_samples=300, random_state=0)
+    physics = data.physics if continuous else cascaded_tanks_physics()
+    u = data.u if continuous else make_cascaded_tanks(n_samples=300, random_state=0).u
+    effect = Friction(1, coulomb=2.0) if continuous else Overflow(0, 3.0, sink=1)
+    other = Bias(1, value=1.0)
+    board = augment(physics, switched(effect), switched(other))
+    on = board.with_parameters(**switches(board.effects, [effect]))
+    off = board.with_parameters(**switches(board.effects, []))
+    # equal to rounding (XLA may fuse the two programs differently)
+    np.testing.assert_allclose(_outputs(on, u), _outputs(augment(physics, effect), u), rtol=1e-13)
+    np.testing.assert_allclose(_outputs(off, u), _outputs(physics, u), rtol=1e-13)
+    assert build_model(on, None, ()) == build_model(off, None, ())  # one jit structure
+
+
+def test_switched_effects_compare_by_value_and_refuse_non_effects():
+    assert switched(Leak(0)) == switched(Leak(0)) and switched(Leak(0)) != switched(Leak(1))
+    assert isinstance(switched(Leak(0)), AdditiveEffect)
+    assert not isinstance(switched(Overflow(0, 1.0)), AdditiveEffect)
+    with pytest.raises(TypeError, match="Switched takes an Effect"):
+        switched(switched(Leak(0)))
+    restored = pickle.loads(pickle.dumps(switched(Leak(0))))
+    assert restored == switched(Leak(0)) and restored.switch == "leak_on"
+
+
+def test_effect_sets_on_one_switchboard_compile_the_solver_once():
+    data = make_cascaded_tanks(n_samples=200, random_state=1)
+    effects = [Overflow(0, 4.0, sink=1, name="spill"), Leak(1), Bias(0)]
+    board = Switchboard.of(cascaded_tanks_physics(), effects)
+    sizes = []
+    for on in ([effects[0]], [effects[1], effects[2]], effects):
+        GreyBoxSparseRegressor(board.model(on), max_iter=3).fit(data.u, data.z)
+        sizes.append(_lm_linearise._cache_size())
+    assert sizes[0] == sizes[1] == sizes[2]
+    with pytest.raises(ValueError, match="not among the candidates"):
+        board.model([Leak(0)])
+
+
+def test_separate_models_compose_the_candidates_in_their_order():
+    first, second = Overflow(0, 4.0, sink=1, name="spill"), Leak(1)
+    separate = SeparateModels.of(cascaded_tanks_physics(), [first, second])
+    model = separate.model([second, first], {"leak_rate": 0.02})
+    assert model.effects == (first, second) and model.parameters["leak_rate"].value == 0.02
+    board = Switchboard.of(cascaded_tanks_physics(), [first, second])
+    assert board.ordered([second, first]) == separate.ordered([second, first]) == (first, second)
+    with pytest.raises(ValueError, match="not among the candidates"):
+        separate.model([Leak(0)])

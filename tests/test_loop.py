@@ -1,5 +1,8 @@
 """The closed loop: from a poor physics-only fit to a named, added effect, before/after."""
 
+import logging
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 
@@ -24,6 +27,7 @@ from sk_offwhite.loop import (
     write_report,
 )
 from sk_offwhite.loop._hypotheses import feature_variables
+from sk_offwhite.loop._progress import StageClock
 
 
 @pytest.fixture(scope="module")
@@ -71,6 +75,26 @@ def test_report_is_written_with_figures(leaky, tmp_path):
     assert "leak_x" in text and "| declared physics | validation | init_window |" in text
     assert (tmp_path / "outputs_validation.png").stat().st_size > 1000
     assert (tmp_path / "correction.png").exists() and (tmp_path / "results.json").exists()
+    assert "## Time per stage" in text and "| effect selection |" in text
+
+
+def test_every_stage_is_timed(leaky):
+    _, result = leaky
+    stages = ["declared physics", "evidence", "physics + sparse δ", "effect selection"]
+    assert list(result.timings)[:4] == stages
+    assert all(seconds > 0 for seconds in result.timings.values())
+
+
+def test_stages_are_logged_as_they_run(caplog):
+    clock = StageClock()
+    with caplog.at_level(logging.INFO, logger="sk_offwhite.loop"):
+        with clock.stage("fitting"):
+            pass
+        with clock.stage("fitting"):
+            pass
+    messages = [r.getMessage().split(":")[0] for r in caplog.records]
+    assert messages == ["fitting ...", "fitting"] * 2
+    assert set(clock.seconds) == {"fitting"} and clock.seconds["fitting"] >= 0
 
 
 def test_feature_names_map_to_variables():
@@ -139,10 +163,12 @@ def test_max_candidates_caps_the_candidates_fitted(monkeypatch):
 
     monkeypatch.setattr(_loop, "_rank_alone", rank_alone)
     monkeypatch.setattr(_loop, "_cv_rmse", lambda *args: 1.0)
+    physics = make_leaky_tank(n_samples=50, random_state=0).physics
+    candidates = [SimpleNamespace(effect=Leak(0, name=name)) for name in ("a", "b", "c")]
     effects, trail, _, warm = _loop._select_effects(
-        None, ["first", "second", "third"], None, None, LoopSettings(max_candidates=2), 1.0
+        physics, candidates, None, None, LoopSettings(max_candidates=2), 1.0
     )
-    assert fitted == ["first", "second"] and effects == () and warm == {}
+    assert fitted == candidates[:2] and effects == () and warm == {}
     assert trail == [("declared physics", 1.0)]
 
 

@@ -51,7 +51,9 @@ from .._physics import Parameter
 from ..diagnose import analyse_residuals, range_violations
 from ._candidates import promoted_terms, propose_effects, unique_by_name
 from ._hypotheses import evidence_hypotheses, form_hypotheses
+from ._progress import StageClock, logger
 from ._scoring import MODEL_LABELS, held_out_rmse
+from ._switchboard import effect_sets
 
 __all__ = ["LoopResult", "LoopSettings", "close_the_loop", "fit_continued", "warm_physics"]
 
@@ -74,7 +76,10 @@ class LoopSettings:
     how many of the best single candidates forward selection combines; ``min_share`` the
     fraction of the strongest term's gain a term needs to be evidence; ``n_promoted`` how
     many of the strongest terms are proposed as they are; ``fit_delta`` whether the models
-    with a sparse :math:`\delta` are fitted (they show what is left, and cost a path each).
+    with a sparse :math:`\delta` are fitted (they show what is left, and cost a path each);
+    ``share_programs`` whether every effect set is fitted on one compiled program (a
+    :class:`~sk_offwhite.loop._switchboard.Switchboard`: less compilation, other rounding,
+    see that module).
     """
 
     gammas: tuple[float, ...] | None = None
@@ -94,6 +99,7 @@ class LoopSettings:
     min_share: float = 0.1
     n_promoted: int = 3
     fit_delta: bool = True
+    share_programs: bool = False
 
     def __post_init__(self):
         if self.max_candidates is not None and self.max_candidates < 1:
@@ -113,7 +119,8 @@ class LoopResult:
     come from; ``cv_errors`` maps each fitted model's key (``"baseline"``, ``"with_delta"``,
     ``"final"``, ``"final_with_delta"``) to its cross-validated RMSE, ``chosen`` is the
     key of the lowest; ``failures`` one line per fit that failed; ``notes`` what the loop
-    decided not to use and why.
+    decided not to use and why; ``timings`` the wall time of each stage in seconds (the
+    stages are logged as they run, see :mod:`~sk_offwhite.loop._progress`).
     """
 
     physics: object
@@ -135,6 +142,7 @@ class LoopResult:
     chosen: str = "baseline"
     failures: list = field(default_factory=list)
     notes: list = field(default_factory=list)
+    timings: dict = field(default_factory=dict)
 
     @property
     def best(self) -> GreyBoxSparseRegressor:
@@ -254,23 +262,24 @@ def _effect_parameters(est, effects) -> dict:
     }
 
 
-def _quick_fit(physics, effects, warm, u, z, settings):
-    """``(estimation RMSE, fitted effect parameters)`` of ``physics`` plus ``effects``: a
-    multiple-shooting fit over ``horizon`` windows, scored by the free run of the record."""
-    model = augment(physics, *effects).with_parameters(**warm)
-    est = _estimator(model, settings).fit(u, z)
+def _quick_fit(board, effects, warm, u, z, settings):
+    """``(estimation RMSE, fitted effect parameters)`` of the physics plus ``effects``
+    (switched on on ``board``): a multiple-shooting fit over ``horizon`` windows, scored by
+    the free run of the record."""
+    est = _estimator(board.model(effects, warm), settings).fit(u, z)
     return _rmse(est.predict(u), z), _effect_parameters(est, effects)
 
 
-def _rank_alone(physics, candidates, u, z, settings, failures):
+def _rank_alone(board, candidates, u, z, settings, failures):
     """``(estimation RMSE, candidate, fitted effect parameters)`` of each candidate added
     alone, best first (``inf`` and a line in ``failures`` where the fit failed); a named
     effect ranks before a promoted term unless the term is better by ``tolerance``."""
     ranked = []
-    for candidate in candidates:
+    for k, candidate in enumerate(candidates, 1):
         label = f"candidate {candidate.effect.name}"
+        logger.info("  %s (%d of %d)", label, k, len(candidates))
         fitted = _attempt(
-            failures, label, _quick_fit, physics, (candidate.effect,), {}, u, z, settings
+            failures, label, _quick_fit, board, (candidate.effect,), {}, u, z, settings
         )
         rmse, params = fitted if fitted is not None else (np.inf, {})
         ranked.append((rmse, candidate, params))
@@ -282,7 +291,7 @@ def _handicap(effect, settings) -> float:
     return 1.0 + settings.tolerance if isinstance(effect, DictionaryTerm) else 1.0
 
 
-def _forward(physics, ranked, u, z, settings, base_rmse, failures):
+def _forward(board, ranked, u, z, settings, base_rmse, failures):
     """Forward selection: ``[(effects, warm parameters, estimation RMSE)]`` for each step."""
     pool = [(c.effect, params, r) for r, c, params in ranked if np.isfinite(r)][: settings.beam]
     steps, current, current_rmse = [], [], base_rmse
@@ -290,7 +299,7 @@ def _forward(physics, ranked, u, z, settings, base_rmse, failures):
         steps.append(((pool[0][0],), pool[0][1], pool[0][2]))
         current, current_rmse = [pool[0][0]], pool[0][2]
     else:
-        pool, steps = [], _best_pair(physics, pool[:3], u, z, settings, base_rmse, failures)
+        pool, steps = [], _best_pair(board, pool[:3], u, z, settings, base_rmse, failures)
         if steps:
             current, current_rmse = list(steps[0][0]), steps[0][2]
     while len(current) < settings.max_effects:
@@ -300,8 +309,9 @@ def _forward(physics, ranked, u, z, settings, base_rmse, failures):
                 continue
             warm = {**steps[-1][1], **params}
             label = "effects " + " + ".join(e.name for e in (*current, effect))
+            logger.info("  %s", label)
             fitted = _attempt(
-                failures, label, _quick_fit, physics, (*current, effect), warm, u, z, settings
+                failures, label, _quick_fit, board, (*current, effect), warm, u, z, settings
             )
             if fitted is not None:
                 trials.append((fitted[0], effect, fitted[1]))
@@ -315,7 +325,7 @@ def _forward(physics, ranked, u, z, settings, base_rmse, failures):
     return steps
 
 
-def _best_pair(physics, pool, u, z, settings, base_rmse, failures):
+def _best_pair(board, pool, u, z, settings, base_rmse, failures):
     """When no candidate helps alone: the best pair of the ``pool`` if it helps."""
     best = None
     for a in range(len(pool)):
@@ -323,7 +333,7 @@ def _best_pair(physics, pool, u, z, settings, base_rmse, failures):
             effects = (pool[a][0], pool[b][0])
             label = "effects " + " + ".join(e.name for e in effects)
             warm = {**pool[a][1], **pool[b][1]}
-            fitted = _attempt(failures, label, _quick_fit, physics, effects, warm, u, z, settings)
+            fitted = _attempt(failures, label, _quick_fit, board, effects, warm, u, z, settings)
             if fitted is not None and (best is None or fitted[0] < best[2]):
                 best = (effects, fitted[1], fitted[0])
     if best is None or best[2] > (1.0 - settings.min_gain) * base_rmse:
@@ -361,26 +371,34 @@ def _select_effects(
 ):
     """Effect sets by forward selection and nested by single gain, chosen by CV RMSE.
 
-    Returns the chosen effects, the CV trail (starting with ``declared_cv``, computed when
-    ``None``), the single-fit RMSEs and the effects' fitted parameters (the start of the
-    final fit).
+    A set's effects are composed in the order of the single fits; with ``share_programs``
+    all sets are fitted on one :class:`~sk_offwhite.loop._switchboard.Switchboard`.
+    Returns the chosen effects (in that order), the CV trail (starting with
+    ``declared_cv``, computed when ``None``), the single-fit RMSEs and the effects' fitted
+    parameters (the start of the final fit).
     """
     failures = [] if failures is None else failures
     if declared_cv is None:
         declared_cv = _cv_rmse(_estimator(physics, settings, cv=True), u, z, settings)
-    ranked = _rank_alone(physics, candidates[: settings.max_candidates], u, z, settings, failures)
+    candidates = candidates[: settings.max_candidates]
+    shared = settings.share_programs
+    alone = effect_sets(physics, [c.effect for c in candidates], shared)
+    ranked = _rank_alone(alone, candidates, u, z, settings, failures)
+    # sets compose their effects in the order of the single fits (best first)
+    board = effect_sets(physics, [c.effect for _, c, _ in ranked], shared)
     singles = [(c.effect.name, r) for r, c, _ in ranked]
-    steps = _forward(physics, ranked, u, z, settings, base_rmse, failures)
+    steps = _forward(board, ranked, u, z, settings, base_rmse, failures)
     steps = _by_size(steps + _nested(ranked, base_rmse, settings))
     trail = [("declared physics", declared_cv)]
-    for effects, warm, _ in steps:
-        model = augment(physics, *effects).with_parameters(**warm)
+    for k, (effects, warm, _) in enumerate(steps, 1):
+        logger.info("  CV of %s (%d of %d)", _label(effects), k, len(steps))
+        model = board.model(effects, warm)
         score = _cv_rmse(_estimator(model, settings, cv=True), u, z, settings)
-        trail.append((" + ".join(e.name for e in effects), score))
+        trail.append((_label(board.ordered(effects)), score))
     k = _smallest_within([s for _, s in trail], settings.tolerance)
     if k == 0 or trail[k][1] > (1.0 - settings.min_gain) * trail[0][1]:
         return (), trail, singles, {}
-    return steps[k - 1][0], trail, singles, steps[k - 1][1]
+    return board.ordered(steps[k - 1][0]), trail, singles, steps[k - 1][1]
 
 
 def _delta_cv(est, u, z, settings) -> float:
@@ -450,6 +468,15 @@ def _delta_hypotheses(est, u, cv, declared_cv, settings, notes):
     return form_hypotheses(est, est.simulate(u), u)
 
 
+def _fit_declared(physics, u, z, settings):
+    """The declared physics fitted (multiple shooting, then whole), the physics started from
+    that fit, its free run and its CV RMSE."""
+    baseline = fit_continued(_estimator(physics, settings), u, z, settings.horizon)
+    start = warm_physics(physics, baseline)
+    declared_cv = _cv_rmse(_estimator(start, settings, cv=True), u, z, settings)
+    return baseline, start, baseline.simulate(u), declared_cv
+
+
 def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = None):
     """Run the whole loop on one estimation record ``(u, z)``; see the module docstring.
 
@@ -469,38 +496,43 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
     u, z = np.asarray(u, float), np.asarray(z, float).reshape(len(u), -1)
     failures: list[str] = []
     notes: list[str] = []
-    baseline = fit_continued(_estimator(physics, settings), u, z, settings.horizon)
-    start = warm_physics(physics, baseline)
-    run = baseline.simulate(u)
-    facts = range_violations(z, run.outputs, _output_names(physics, z.shape[1]))
-    evidence, hypotheses = _read_evidence(start, library, u, z, settings, failures)
-    snapshot = copy.copy(evidence)  # the physics-only fit, kept when the path refits it
-    declared_cv = _cv_rmse(_estimator(start, settings, cv=True), u, z, settings)
+    clock = StageClock()
+    with clock.stage("declared physics"):
+        baseline, start, run, declared_cv = _fit_declared(physics, u, z, settings)
+        facts = range_violations(z, run.outputs, _output_names(physics, z.shape[1]))
+    with clock.stage("evidence"):
+        evidence, hypotheses = _read_evidence(start, library, u, z, settings, failures)
+        snapshot = copy.copy(evidence)  # the physics-only fit, kept when the path refits it
     fits = {"baseline": (baseline, None, declared_cv)}
     if settings.fit_delta:
-        # the evidence estimator has the path's settings when CV fits whole blocks
-        reuse = evidence if settings.cv_horizon is None else None
-        fits["with_delta"] = _scored_delta(
-            "with_delta", start, library, u, z, settings, failures, reuse
+        with clock.stage(MODEL_LABELS["with_delta"]):
+            # the evidence estimator has the path's settings when CV fits whole blocks
+            reuse = evidence if settings.cv_horizon is None else None
+            fits["with_delta"] = _scored_delta(
+                "with_delta", start, library, u, z, settings, failures, reuse
+            )
+            hypotheses = hypotheses + _delta_hypotheses(
+                fits["with_delta"][0], u, fits["with_delta"][2], declared_cv, settings, notes
+            )
+    with clock.stage("effect selection"):
+        candidates = _candidates(start, library, hypotheses, facts, run, u, settings)
+        effects, trail, singles, warm = _select_effects(
+            start, candidates, u, z, settings, _rmse(run.outputs, z), failures, declared_cv
         )
-        hypotheses = hypotheses + _delta_hypotheses(
-            fits["with_delta"][0], u, fits["with_delta"][2], declared_cv, settings, notes
-        )
-    candidates = _candidates(start, library, hypotheses, facts, run, u, settings)
-    effects, trail, singles, warm = _select_effects(
-        start, candidates, u, z, settings, _rmse(run.outputs, z), failures, declared_cv
-    )
-    notes += _equivalents(effects, singles, settings.tolerance)
-    augmented = augment(start, *effects).with_parameters(**warm)
-    final = _attempt(
-        failures, "augmented physics", fit_continued, _estimator(augmented, settings), u, z,
-        settings.horizon,
-    ) or baseline  # fmt: skip
+        notes += _equivalents(effects, singles, settings.tolerance)
+    with clock.stage(MODEL_LABELS["final"]):
+        augmented = augment(start, *effects).with_parameters(**warm)
+        final = _attempt(
+            failures, "augmented physics", fit_continued, _estimator(augmented, settings), u, z,
+            settings.horizon,
+        ) or baseline  # fmt: skip
     fits["final"] = (final, None, dict(trail).get(_label(effects), declared_cv))
     if settings.fit_delta:
-        fits["final_with_delta"] = _scored_delta(
-            "final_with_delta", warm_physics(augmented, final), library, u, z, settings, failures
-        )
+        with clock.stage(MODEL_LABELS["final_with_delta"]):
+            fits["final_with_delta"] = _scored_delta(
+                "final_with_delta", warm_physics(augmented, final), library, u, z, settings,
+                failures,
+            )  # fmt: skip
     models = {key: fit[0] for key, fit in fits.items()}
     paths = {key: fit[1] for key, fit in fits.items()}
     cv_errors = {key: fit[2] for key, fit in fits.items() if fit[0] is not None}
@@ -524,6 +556,7 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
         _choose(cv_errors),
         failures,
         notes,
+        clock.seconds,
     )
 
 

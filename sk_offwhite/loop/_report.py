@@ -145,6 +145,15 @@ def _choice_lines(result) -> list[str]:
     return lines + [""]
 
 
+def _timing_lines(result) -> list[str]:
+    """Wall time of each stage of the loop."""
+    if not result.timings:
+        return ["- not recorded", ""]
+    lines = ["| stage | wall time (s) |", "|---|---|"]
+    lines += [f"| {stage} | {seconds:.1f} |" for stage, seconds in result.timings.items()]
+    return lines + [f"| total | {sum(result.timings.values()):.1f} |", ""]
+
+
 def _failure_lines(result) -> list[str]:
     if not result.failures:
         return ["- none", ""]
@@ -217,6 +226,7 @@ def write_report(result, rows, records: dict, directory, *, title: str, notes=()
     lines += _remaining_lines(result)
     lines += ["## Model chosen (lowest cross-validated error)", ""] + _choice_lines(result)
     lines += ["## Fits that failed", ""] + _failure_lines(result)
+    lines += ["## Time per stage", ""] + _timing_lines(result)
     lines += [f"![outputs {n}](outputs_{n}.png)" for n in records] + [""]
     (out / "report.md").write_text("\n".join(lines), encoding="utf-8")
     (out / "results.json").write_text(json.dumps({"rows": rows}, indent=2), encoding="utf-8")
