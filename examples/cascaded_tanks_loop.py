@@ -6,9 +6,10 @@ explicit physics (chosen by cross-validation on the estimation record only), ref
 the sparse corrections that show what is left, and writes a report with the errors before
 and after on both records under both scoring protocols and the CV-best model.
 
-Run: ``python examples/cascaded_tanks_loop.py [--out DIR] [--quick] [--quiet]`` (``DIR``
-defaults to ``reports/cascaded_tanks``); the stages of the loop are logged as they run
-(``--quiet`` switches that off).
+Run: ``python examples/cascaded_tanks_loop.py [--out DIR] [--quick] [--quiet] [--no-cache]``
+(``DIR`` defaults to ``reports/cascaded_tanks``); the stages of the loop are logged as they
+run (``--quiet`` switches that off); compiled programs are kept on disk for the next run
+(:func:`sk_offwhite.enable_compilation_cache`; ``--no-cache`` switches that off).
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import time
 
 import pysindy as ps
 
+from sk_offwhite import enable_compilation_cache
 from sk_offwhite.datasets import cascaded_tanks_physics, load_cascaded_tanks
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models, write_report
 
@@ -39,7 +41,15 @@ def main(argv=None):
         "not the result",
     )
     parser.add_argument("--quiet", action="store_true", help="no progress messages")
+    parser.add_argument(
+        "--no-cache",
+        action="store_true",
+        help="do not keep compiled programs on disk (by default they are, in "
+        "$SK_OFFWHITE_CACHE or ~/.cache/sk_offwhite/xla, so a second run compiles little)",
+    )
     args = parser.parse_args(argv)
+    if not args.no_cache:
+        enable_compilation_cache()
     if not args.quiet:
         logging.basicConfig(format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
         logging.getLogger("sk_offwhite").setLevel(logging.INFO)

@@ -1,6 +1,7 @@
 """sk_offwhite: physics-based multi-step system identification with sparse corrections."""
 
 from ._basis import RidgeBasis, compile_basis
+from ._cache import enable_compilation_cache
 from ._effects import (
     AdditiveEffect,
     Bias,
@@ -45,6 +46,7 @@ __all__ = [
     "Switched",
     "augment",
     "compile_basis",
+    "enable_compilation_cache",
     "expected_failed_checks",
     "fit_gamma_path",
     "gamma_grid",

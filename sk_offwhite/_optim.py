@@ -123,8 +123,9 @@ def _omega(free, problem: Problem, layout: Layout):
 LINEARIZE_MAX_FREE = 10
 """Up to this many free variables the forward-mode Jacobian pushes the tangents through one
 linearisation (``jax.linearize``); above, through ``jacfwd``. Measured on the Cascaded
-Tanks cost (jax 0.10.2, CPU): 5 free, 0.32 against 1.12 ms; 19 free, 0.96 against 0.51
-ms; 25 free (with a 20-term dictionary), 8.9 against 6.4 ms (``benchmarks/bench_speed.py``)."""
+Tanks cost, 1024 samples (jax 0.10.2, CPU), linearize against jacfwd: 5 free, 0.23 against
+1.5 ms; 19 free, 0.61 against 0.42 ms; 25 free (with a 20-term dictionary), 7.0 against 5.5
+ms. Tangents one at a time (``lax.map`` of ``jvp``) were slower still (2.7 and 97 ms)."""
 
 
 def linearised(fun, x, forward: bool = True):

@@ -1,0 +1,382 @@
+"""Speed of sk_offwhite, measured the way a user meets it: cold, warm, per step, per grid.
+
+Run with ``python benchmarks/bench_speed.py [--rounds 3] [--main-job] [--out DIR]``. One run
+prints (and writes ``bench_speed.md`` / ``.json`` in ``--out``, default
+``reports/benchmarks``):
+
+* **fit, cold and warm** — the physics-only Cascaded Tanks fit (eq. 21 with ``k4`` fixed,
+  every other parameter and both initial levels free, the measured estimation record):
+  sk_offwhite; scipy ``least_squares`` on a numpy Euler loop of the same model (finite
+  differences); jax-sysid when installed (skipped when absent: version 1.1 requires
+  ``jax<=0.4.31``, so it needs an environment of its own). Each contender runs in a
+  fresh process, contenders alternating, ``--rounds`` times; *cold* is import + first fit
+  + predict in that process, *warm* the same fit again in it. Min and median.
+* **per step** — microseconds per simulated step of what the solver runs: one
+  Levenberg-Marquardt linearisation (residual + Jacobian), one trial step (forward only),
+  and the plain forward rollout, physics only and with a 10-term dictionary, at 10³ and
+  10⁴ samples; min and median of interleaved repeats.
+* **grid against one fit** — ``fit_gamma_path`` over 8 values of γ with 3 contiguous
+  folds, against one fit at one γ, both after a warm-up (and the first path cold).
+* **memory** — resident set size over 100 fits in one process (growth per fit).
+* **main job** (``--main-job``) — the README's closed loop on the Cascaded Tanks in a
+  fresh process, split into XLA compilation, tracing, lowering and the rest
+  (``jax.monitoring``), and its peak RSS.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import statistics
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+K4 = 0.05
+
+
+def _tanks_record():
+    from sk_offwhite.datasets import load_cascaded_tanks
+
+    data = load_cascaded_tanks()
+    return data.u_est, data.z_est
+
+
+def _fit_sk(u, z):
+    from sk_offwhite import GreyBoxSparseRegressor
+    from sk_offwhite.datasets import cascaded_tanks_physics
+
+    est = GreyBoxSparseRegressor(cascaded_tanks_physics(fixed={"k4": K4}))
+    est.fit(u, z)
+    est.predict(u)
+    return float(est.cost_)
+
+
+def _euler_outputs(params, u):
+    import numpy as np
+
+    k1, k2, k3, x1, x2 = params
+    outputs = np.empty(len(u))
+    for i, u_k in enumerate(u[:, 0]):
+        outputs[i] = x2
+        r1, r2 = np.sqrt(max(x1, 1e-6)), np.sqrt(max(x2, 1e-6))
+        x1, x2 = x1 + 4.0 * (-k1 * r1 + K4 * u_k), x2 + 4.0 * (k2 * r1 - k3 * r2)
+    return outputs
+
+
+def _fit_scipy(u, z):
+    import numpy as np
+    from scipy.optimize import least_squares
+
+    start = np.array([0.05, 0.05, 0.05, z[0, 0], z[0, 0]])
+    fit = least_squares(
+        lambda p: _euler_outputs(p, u) - z[:, 0],
+        start,
+        bounds=([1e-6] * 3 + [0.0] * 2, [np.inf] * 5),
+    )
+    return float(np.mean(fit.fun**2))
+
+
+def _fit_jax_sysid(u, z):
+    import jax.numpy as jnp
+    from jax_sysid.models import Model
+
+    def state_fcn(x, u_k, params):
+        k1, k2, k3 = params[0]
+        r1, r2 = jnp.sqrt(jnp.maximum(x[0], 1e-6)), jnp.sqrt(jnp.maximum(x[1], 1e-6))
+        return jnp.stack([x[0] + 4.0 * (-k1 * r1 + K4 * u_k[0]), x[1] + 4.0 * (k2 * r1 - k3 * r2)])
+
+    model = Model(2, 1, 1, state_fcn=state_fcn, output_fcn=lambda x, u_k, params: x[1:2])
+    model.init(params=[jnp.array([0.05, 0.05, 0.05])], x0=jnp.array([z[0, 0], z[0, 0]]))
+    model.optimization(lbfgs_epochs=200, adam_epochs=0, params_min=[jnp.full(3, 1e-6)])
+    model.fit(z, u)
+    return float(jnp.mean((model.predict(model.x0, u)[0] - z) ** 2))
+
+
+CONTENDERS = {"sk_offwhite": _fit_sk, "scipy": _fit_scipy, "jax-sysid": _fit_jax_sysid}
+
+
+def one_process(name: str) -> dict:
+    """Cold (import + first fit + predict) and warm (second fit) times in this process."""
+    start = time.perf_counter()
+    if name == "sk_offwhite":
+        import sk_offwhite  # noqa: F401
+    u, z = _tanks_record()
+    imported = time.perf_counter() - start
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        CONTENDERS[name](u, z)
+        cold = time.perf_counter() - start
+        again = time.perf_counter()
+        cost = CONTENDERS[name](u, z)
+    return {"import": imported, "cold": cold, "warm": time.perf_counter() - again, "cost": cost}
+
+
+def _available(name: str) -> bool:
+    if name != "jax-sysid":
+        return True
+    try:
+        import jax_sysid  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def cold_and_warm(rounds: int) -> dict:
+    """Fresh-process timings of every available contender, alternated ``rounds`` times."""
+    names = [n for n in CONTENDERS if _available(n)]
+    runs = {n: [] for n in names}
+    for _ in range(rounds):
+        for name in names:
+            out = subprocess.run(
+                [sys.executable, __file__, "--one", name],
+                capture_output=True,
+                text=True,
+                check=True,
+            )
+            runs[name].append(json.loads(out.stdout.strip().splitlines()[-1]))
+    return {n: _summary(r, ("import", "cold", "warm")) for n, r in runs.items()} | {
+        "skipped": [n for n in CONTENDERS if n not in names]
+    }
+
+
+def _summary(runs: list[dict], keys) -> dict:
+    return {
+        k: {"min": min(r[k] for r in runs), "median": statistics.median(r[k] for r in runs)}
+        for k in keys
+    }
+
+
+def _lm_problem(n_samples: int, library):
+    """The solver's programs and data for the tanks cost at ``n_samples`` samples."""
+    import numpy as np
+
+    from sk_offwhite import GreyBoxSparseRegressor
+    from sk_offwhite._layout import Layout
+    from sk_offwhite._problem import (
+        bound_blocks,
+        free_blocks,
+        initial_blocks,
+        make_problem,
+        scaled_weights,
+    )
+    from sk_offwhite._segments import make_segments
+    from sk_offwhite.datasets import cascaded_tanks_physics
+
+    u, z = _tanks_record()
+    repeats = -(-n_samples // len(u))
+    u, z = np.tile(u, (repeats, 1))[:n_samples], np.tile(z, (repeats, 1))[:n_samples]
+    physics = cascaded_tanks_physics(fixed={"k4": K4})
+    est = GreyBoxSparseRegressor(physics, library=library)
+    basis, model = est._compile(physics)
+    records = [(u, z)]
+    segments = make_segments(records, None)
+    blocks = initial_blocks(physics, basis, model, records, segments, None)
+    layout = Layout.from_arrays(blocks)
+    weights = scaled_weights((1e-3, 0.0, 0.0, 1.0, 1.0), records, blocks["x0"])
+    free = free_blocks(physics, basis, model, segments)
+    problem, free0 = make_problem(
+        layout, blocks, free, bound_blocks(physics, blocks), segments, weights
+    )
+    return model, layout, problem, free0
+
+
+def _timed(function, repeats: int) -> list[float]:
+    import jax
+
+    jax.block_until_ready(function())
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        jax.block_until_ready(function())
+        times.append(time.perf_counter() - start)
+    return times
+
+
+def _solver_programs(model, layout, problem, free0) -> dict:
+    """Zero-argument calls of the solver's two programs and of the forward rollout."""
+    import jax
+
+    from sk_offwhite._optim import _lm_linearise, _lm_trial, free_residuals
+
+    static = dict(model=model, layout=layout)
+    state = _lm_linearise(free0, problem, forward=True, **static)
+    forward = jax.jit(free_residuals, static_argnames=("model", "layout"))
+    return {
+        "linearise": lambda: _lm_linearise(free0, problem, forward=True, **static),
+        "trial step": lambda: _lm_trial(state, 1e-3, problem, **static),
+        "forward": lambda: forward(free0, problem, **static),
+    }
+
+
+def per_step(repeats: int) -> list[dict]:
+    """µs per step of a linearisation, a trial step and a forward rollout."""
+    import jax
+    import pysindy as ps
+
+    rows = []
+    with jax.enable_x64(True):
+        for n_samples in (1000, 10000):
+            for label, library in (("physics", None), ("+ 10 terms", ps.PolynomialLibrary())):
+                model, layout, problem, free0 = _lm_problem(n_samples, library)
+                programs = _solver_programs(model, layout, problem, free0)
+                times = {k: [] for k in programs}
+                for _ in range(3):  # interleaved
+                    for key, program in programs.items():
+                        times[key] += _timed(program, repeats)
+                for key, values in times.items():
+                    rows.append(
+                        {
+                            "samples": n_samples,
+                            "model": label,
+                            "free": int(free0.shape[0]),
+                            "program": key,
+                            "us_per_step_min": 1e6 * min(values) / n_samples,
+                            "us_per_step_median": 1e6 * statistics.median(values) / n_samples,
+                        }
+                    )
+    return rows
+
+
+def grid_against_one() -> dict:
+    """``fit_gamma_path`` over 8 γ (3 folds) against one fit at one γ."""
+    import pysindy as ps
+    from sklearn.model_selection import KFold
+
+    from sk_offwhite import GreyBoxSparseRegressor, fit_gamma_path
+    from sk_offwhite.datasets import cascaded_tanks_physics
+
+    u, z = _tanks_record()
+    est = GreyBoxSparseRegressor(
+        cascaded_tanks_physics(fixed={"k4": K4}), library=ps.PolynomialLibrary(), gamma=1e-2
+    )
+    out = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for attempt in ("cold", "warm"):
+            start = time.perf_counter()
+            fit_gamma_path(est, u, z, n_gammas=8, cv=KFold(3))
+            out[f"path_{attempt}"] = time.perf_counter() - start
+        start = time.perf_counter()
+        est.fit(u, z)
+        out["one_fit_warm"] = time.perf_counter() - start
+    out["ratio_warm"] = out["path_warm"] / out["one_fit_warm"]
+    return out
+
+
+def _rss_mib() -> float:
+    with open("/proc/self/statm") as statm:
+        return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2**20
+
+
+def memory(n_fits: int = 100) -> dict:
+    """RSS after 10 fits and after ``n_fits`` (the growth per fit in between)."""
+    u, z = _tanks_record()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for _ in range(10):
+            _fit_sk(u, z)
+        early = _rss_mib()
+        for _ in range(n_fits - 10):
+            _fit_sk(u, z)
+    late = _rss_mib()
+    return {"rss_after_10_mib": early, "rss_after_100_mib": late,
+            "growth_per_fit_mib": (late - early) / (n_fits - 10)}  # fmt: skip
+
+
+MAIN_JOB = """
+import collections, resource, sys, time
+from jax import monitoring
+seconds = collections.Counter()
+monitoring.register_event_duration_secs_listener(
+    lambda event, duration, **kw: seconds.update({event: duration}))
+sys.path.insert(0, {examples!r})
+import cascaded_tanks_loop
+start = time.perf_counter()
+cascaded_tanks_loop.main(["--out", {out!r}, "--quiet"])
+print({{"total": time.perf_counter() - start,
+       "compile": seconds["/jax/core/compile/backend_compile_duration"],
+       "trace": seconds["/jax/core/compile/jaxpr_trace_duration"],
+       "lower": seconds["/jax/core/compile/jaxpr_to_mlir_module_duration"],
+       "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}})
+"""
+
+
+def main_job(out: Path) -> dict:
+    """The README's main job in a fresh process, split by ``jax.monitoring``."""
+    code = MAIN_JOB.format(examples=str(HERE.parent / "examples"), out=str(out / "main_job"))
+    result = subprocess.run(
+        [sys.executable, "-W", "ignore", "-c", code], capture_output=True, text=True, check=True
+    )
+    timings = eval(result.stdout.strip().splitlines()[-1])  # a dict literal printed above
+    timings["execute_and_python"] = (
+        timings["total"] - timings["compile"] - timings["trace"] - timings["lower"]
+    )
+    return timings
+
+
+def _markdown(results: dict) -> str:
+    lines = [f"Machine: {results['machine']}", "", "## Fit, fresh process (s)", ""]
+    lines += ["| contender | import | cold (min / median) | warm (min / median) |",
+              "|---|---|---|---|"]  # fmt: skip
+    for name, row in results["fit"].items():
+        if name == "skipped":
+            continue
+        lines.append(
+            f"| {name} | {row['import']['median']:.2f} | {row['cold']['min']:.2f} / "
+            f"{row['cold']['median']:.2f} | {row['warm']['min']:.3f} / "
+            f"{row['warm']['median']:.3f} |"
+        )
+    if results["fit"]["skipped"]:
+        lines += ["", "Skipped (not installed): " + ", ".join(results["fit"]["skipped"])]
+    lines += ["", "## Per simulated step (µs)", ""]
+    lines += ["| samples | model | free | program | min | median |", "|---|---|---|---|---|---|"]
+    lines += [
+        f"| {r['samples']} | {r['model']} | {r['free']} | {r['program']} | "
+        f"{r['us_per_step_min']:.3f} | {r['us_per_step_median']:.3f} |"
+        for r in results["per_step"]
+    ]
+    lines += ["", "## Other", "", "```", json.dumps(
+        {k: results[k] for k in ("grid", "memory", "main_job") if k in results}, indent=2
+    ), "```"]  # fmt: skip
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--rounds", type=int, default=3)
+    parser.add_argument("--repeats", type=int, default=20)
+    parser.add_argument("--main-job", action="store_true")
+    parser.add_argument("--out", default="reports/benchmarks")
+    parser.add_argument("--one", choices=sorted(CONTENDERS), help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.one:
+        print(json.dumps(one_process(args.one)))
+        return
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    results = {
+        "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+        f"Python {platform.python_version()}",
+        "fit": cold_and_warm(args.rounds),
+        "per_step": per_step(args.repeats),
+        "grid": grid_against_one(),
+        "memory": memory(),
+    }
+    if args.main_job:
+        results["main_job"] = main_job(out)
+    results["peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    text = _markdown(results)
+    print(text)
+    (out / "bench_speed.md").write_text(text, encoding="utf-8")
+    (out / "bench_speed.json").write_text(json.dumps(results, indent=2), encoding="utf-8")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,42 @@
+"""The opt-in persistent compilation cache: off unless asked for, then filled by a fit."""
+
+import os
+import subprocess
+import sys
+
+FIT = (
+    "import numpy as np, jax, sk_offwhite;"
+    "from sk_offwhite.datasets import make_leaky_tank;"
+    "d = make_leaky_tank(n_samples=100, random_state=0);"
+    "{setup}"
+    "sk_offwhite.GreyBoxSparseRegressor(d.physics, max_iter=5).fit(d.u, d.z);"
+    "print(jax.config.jax_compilation_cache_dir)"
+)
+
+
+def _run(setup: str, environment: dict) -> str:
+    out = subprocess.run(
+        [sys.executable, "-W", "ignore", "-c", FIT.format(setup=setup)],
+        env=environment,
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    return out.stdout.strip().splitlines()[-1]
+
+
+def _environment(**extra) -> dict:
+    environment = {k: v for k, v in os.environ.items() if k != "JAX_COMPILATION_CACHE_DIR"}
+    return environment | extra
+
+
+def test_the_package_leaves_the_cache_off():
+    assert _run("", _environment()) == "None"
+
+
+def test_enable_compilation_cache_keeps_the_fit_programs(tmp_path):
+    used = _run(
+        "sk_offwhite.enable_compilation_cache();", _environment(SK_OFFWHITE_CACHE=str(tmp_path))
+    )
+    assert used == str(tmp_path.resolve())
+    assert len(list(tmp_path.iterdir())) >= 2  # at least the two solver programs
