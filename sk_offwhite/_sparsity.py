@@ -442,4 +442,26 @@ def fit_sparse(
     stage = stage._replace(problem=penalised)
     free = _prune_and_refit(stage, np.asarray(results[-1].free, float), scale, options, results)
     result = _combine(results, free)
-    return SparseFit(free, result, final_scale, reference.gamma_max, reference, evidence)
+    if warm:
+        result = _no_worse_than(stage, np.asarray(start, float), result)
+    return SparseFit(result.free, result, final_scale, reference.gamma_max, reference, evidence)
+
+
+def _no_worse_than(stage: _Stage, start: np.ndarray, result: SolverResult) -> SolverResult:
+    r"""``result``, or the warm ``start`` when the start dominates it: no more terms and a
+    lower simulation error :math:`F`.
+
+    A penalised stage stopped at ``max_iter`` can leave the true terms small enough for
+    pruning to drop them, and the refit then settles in a worse minimum with other terms;
+    a fit started from a solution (the previous :math:`\gamma` of a support path) must not
+    return one that is both larger and worse.
+    """
+    free = np.asarray(result.free, float)
+    start_fit, result_fit = stage.evaluate(start), stage.evaluate(free)
+    fewer_or_as_many = np.count_nonzero(start[stage.omega_at]) <= np.count_nonzero(
+        free[stage.omega_at]
+    )
+    if not (fewer_or_as_many and start_fit < result_fit):
+        return result
+    message = "the fit ended worse than its warm start, with no fewer terms; the start is kept"
+    return SolverResult(start, start_fit, result.history, result.n_iter, False, message)

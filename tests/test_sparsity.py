@@ -14,6 +14,8 @@ import pytest
 from sklearn.model_selection import KFold
 
 from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel, fit_gamma_path, gamma_grid
+from sk_offwhite._optim import SolverResult
+from sk_offwhite._sparsity import _no_worse_than, _Stage
 
 TRUE = {"a": 0.8, "b": 0.5, "c": -0.15}
 N_SAMPLES = 300
@@ -163,3 +165,17 @@ def test_path_refuses_shuffled_folds_and_bad_grids(record):
         fit_gamma_path(_estimator(), *record, gammas=[np.nan])
     with pytest.raises(ValueError, match="needs an estimator with a library"):
         fit_gamma_path(GreyBoxSparseRegressor(_physics()), *record)
+
+
+def test_a_warm_fit_never_returns_a_larger_and_worse_solution():
+    omega_at = np.array([1, 2, 3])
+    stage = _Stage(None, None, omega_at, 10, lambda free: float(np.sum(free**2)))
+    start = np.array([0.1, 0.0, 0.2, 0.0])  # one term, fit 0.05
+    worse = SolverResult(np.array([0.5, 0.1, 0.2, 0.0]), 1.0, np.ones(2), 5, True, "ok")
+    kept = _no_worse_than(stage, start, worse)
+    np.testing.assert_array_equal(kept.free, start)
+    assert not kept.converged and "warm start" in kept.message
+    sparser = SolverResult(np.array([0.5, 0.0, 0.0, 0.0]), 1.0, np.ones(2), 5, True, "ok")
+    assert _no_worse_than(stage, start, sparser) is sparser  # fewer terms may cost fit
+    better = SolverResult(np.array([0.0, 0.1, 0.1, 0.0]), 1.0, np.ones(2), 5, True, "ok")
+    assert _no_worse_than(stage, start, better) is better
