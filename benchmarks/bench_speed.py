@@ -295,7 +295,7 @@ import collections, resource, sys, time
 from jax import monitoring
 seconds = collections.Counter()
 monitoring.register_event_duration_secs_listener(
-    lambda event, duration, **kw: seconds.update({event: duration}))
+    lambda event, duration, **kw: seconds.update({{event: duration}}))
 sys.path.insert(0, {examples!r})
 import cascaded_tanks_loop
 start = time.perf_counter()
