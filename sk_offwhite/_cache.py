@@ -27,7 +27,8 @@ def enable_compilation_cache(directory: str | os.PathLike | None = None) -> Path
 
     Sets JAX's ``jax_compilation_cache_dir`` and caches programs however short their
     compilation (JAX's default keeps only those over 1 s, and the solver's programs take
-    0.1-0.7 s each).
+    0.1-0.7 s each), in this process and, through the environment, in the processes it
+    starts afterwards (joblib and Dask workers, ``GridSearchCV(n_jobs=...)``).
 
     Parameters
     ----------
@@ -44,7 +45,12 @@ def enable_compilation_cache(directory: str | os.PathLike | None = None) -> Path
     chosen = directory or os.environ.get("SK_OFFWHITE_CACHE") or configured or DEFAULT_CACHE
     path = Path(chosen).expanduser().resolve()
     path.mkdir(parents=True, exist_ok=True)
-    jax.config.update("jax_compilation_cache_dir", str(path))
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
-    jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
+    settings = {
+        "jax_compilation_cache_dir": str(path),
+        "jax_persistent_cache_min_compile_time_secs": 0.0,
+        "jax_persistent_cache_min_entry_size_bytes": 0,
+    }
+    for name, value in settings.items():
+        jax.config.update(name, value)
+        os.environ[name.upper()] = str(value)  # inherited by joblib and Dask workers
     return path

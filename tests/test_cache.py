@@ -12,6 +12,12 @@ FIT = (
     "sk_offwhite.GreyBoxSparseRegressor(d.physics, max_iter=5).fit(d.u, d.z);"
     "print(jax.config.jax_compilation_cache_dir)"
 )
+CHILD = (
+    "import subprocess, sys;"
+    "child = subprocess.run([sys.executable, '-c', {inner!r}], capture_output=True, text=True);"
+    "print(child.stdout.strip())"
+)
+"""A child process started after the cache is enabled, printing what ``inner`` prints."""
 
 
 def _run(setup: str, environment: dict) -> str:
@@ -40,3 +46,20 @@ def test_enable_compilation_cache_keeps_the_fit_programs(tmp_path):
     )
     assert used == str(tmp_path.resolve())
     assert len(list(tmp_path.iterdir())) >= 2  # at least the two solver programs
+
+
+def test_processes_started_afterwards_share_the_cache(tmp_path):
+    inner = "import jax; print(jax.config.jax_compilation_cache_dir)"
+    setup = (
+        f"sk_offwhite.enable_compilation_cache({str(tmp_path)!r});"
+        + CHILD.format(inner=inner)
+        + ";"
+    )
+    out = subprocess.run(
+        [sys.executable, "-W", "ignore", "-c", FIT.format(setup=setup)],
+        env=_environment(),
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert out.stdout.strip().splitlines()[0] == str(tmp_path.resolve())
