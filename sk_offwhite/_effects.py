@@ -514,9 +514,9 @@ class Switched(Effect):
     (and likewise for the state update and the output), so :math:`s = 1` is the effect,
     exactly as :func:`augment` adds it, and :math:`s = 0` the model without it. The switch
     is a parameter value, not structure: models that differ only in which effects are on
-    share one compiled program (the loop fits every candidate set this way). An effect that
-    is off has zero derivatives (even where it would not be finite); a fit leaves its
-    parameters where they start.
+    share one compiled program (``LoopSettings(share_programs=True)`` fits the loop's
+    candidate sets this way). An effect that is off has zero derivatives (even where it
+    would not be finite); a fit leaves its parameters where they start.
     """
 
     def __init__(self, effect: Effect):

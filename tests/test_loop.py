@@ -175,3 +175,15 @@ def test_max_candidates_caps_the_candidates_fitted(monkeypatch):
 def test_max_candidates_must_be_positive():
     with pytest.raises(ValueError, match="max_candidates must be None or >= 1"):
         LoopSettings(max_candidates=0)
+
+
+def test_shared_programs_find_the_same_leak():
+    data = make_leaky_tank(n_samples=400, random_state=1)
+    settings = LoopSettings(
+        gammas=(1e-3,), n_folds=2, max_iter=100, max_effects=1, max_candidates=4,
+        fit_delta=False, share_programs=True,
+    )  # fmt: skip
+    result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=settings)
+    assert [effect.name for effect in result.effects] == ["leak_x"]
+    assert "leak_x_on" not in result.final.parameters_  # the final model is the plain one
+    np.testing.assert_allclose(result.final.parameters_["leak_x_rate"], 0.05, rtol=0.1)
