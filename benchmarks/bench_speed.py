@@ -291,7 +291,7 @@ def memory(n_fits: int = 100) -> dict:
 
 
 MAIN_JOB = """
-import collections, resource, sys, time
+import collections, json, resource, sys, time
 from jax import monitoring
 seconds = collections.Counter()
 monitoring.register_event_duration_secs_listener(
@@ -300,11 +300,11 @@ sys.path.insert(0, {examples!r})
 import cascaded_tanks_loop
 start = time.perf_counter()
 cascaded_tanks_loop.main(["--out", {out!r}, "--quiet", "--no-cache"])
-print({{"total": time.perf_counter() - start,
+print(json.dumps({{"total": time.perf_counter() - start,
        "compile": seconds["/jax/core/compile/backend_compile_duration"],
        "trace": seconds["/jax/core/compile/jaxpr_trace_duration"],
        "lower": seconds["/jax/core/compile/jaxpr_to_mlir_module_duration"],
-       "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}})
+       "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}}))
 """
 
 
@@ -314,7 +314,7 @@ def main_job(out: Path) -> dict:
     result = subprocess.run(
         [sys.executable, "-W", "ignore", "-c", code], capture_output=True, text=True, check=True
     )
-    timings = eval(result.stdout.strip().splitlines()[-1])  # a dict literal printed above
+    timings = json.loads(result.stdout.strip().splitlines()[-1])
     timings["execute_and_python"] = (
         timings["total"] - timings["compile"] - timings["trace"] - timings["lower"]
     )
