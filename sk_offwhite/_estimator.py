@@ -361,10 +361,17 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     def _delta_states(self, physics: PhysicsModel) -> tuple[int, ...]:
         if self.delta_states is None:
             return tuple(range(physics.n_states))
-        states = tuple(int(i) for i in np.atleast_1d(self.delta_states))
-        if not states or not all(0 <= i < physics.n_states for i in states):
+        given = np.atleast_1d(np.asarray(self.delta_states))
+        usable = given.ndim == 1 and given.dtype.kind in "iu"
+        states = tuple(int(i) for i in given) if usable else ()
+        if (
+            not states
+            or not all(0 <= i < physics.n_states for i in states)
+            or len(set(states)) != len(states)
+        ):
             raise ValueError(
-                f"delta_states must be indices in [0, {physics.n_states}), got {states}."
+                f"delta_states must be distinct integer indices in [0, {physics.n_states}), "
+                f"got {self.delta_states!r}."
             )
         return states
 
@@ -387,6 +394,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         -------
         self : GreyBoxSparseRegressor
         """
+        _check_counts(self)
         return self._fit(u, z, sample_index, reference_only=False)
 
     def _fit(self, u, z, sample_index, reference_only: bool):
@@ -474,6 +482,11 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
 
     def _optimizer(self):
         if self.optimizer is not None:
+            if not callable(getattr(self.optimizer, "update", None)):
+                raise TypeError(
+                    "optimizer must be an optax.GradientTransformation (for example "
+                    f"optax.adam(1e-2)), got {self.optimizer!r}."
+                )
             return self.optimizer
         schedule = optax.cosine_decay_schedule(1e-2, decay_steps=self.max_iter, alpha=0.01)
         return optax.chain(optax.clip_by_global_norm(1.0), optax.adam(schedule))
@@ -662,3 +675,10 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
             for n, v in zip(self.physics_.state_names, self.x0_, strict=True)
         )
         print(f"  x0: {x0}")
+
+
+def _check_counts(est: GreyBoxSparseRegressor) -> None:
+    """Integer settings must not be booleans (``True`` passes as the integer 1)."""
+    for name in ("horizon", "max_iter", "init_window"):
+        if isinstance(getattr(est, name), bool | np.bool_):
+            raise ValueError(f"{name} must be an integer, got {getattr(est, name)!r}.")

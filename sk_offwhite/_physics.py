@@ -66,6 +66,34 @@ def _bound_pair(bounds) -> tuple[float, float]:
     return lower, upper
 
 
+def _checked_bounds(argument: str, bounds, x0) -> tuple[float, float]:
+    """``bounds`` as a float pair, ordered and holding every entry of ``x0``."""
+    try:
+        lower, upper = _bound_pair(bounds)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"{argument} must be a (lower, upper) pair, got {bounds!r}.") from error
+    if lower > upper:
+        raise ValueError(f"{argument} must satisfy lower <= upper, got {bounds!r}.")
+    outside = (x0 < lower) | (x0 > upper)
+    if np.any(outside):
+        raise ValueError(
+            f"the initial-state guess x0 = {x0.tolist()} lies outside {argument} = {bounds!r} "
+            f"(entries {np.flatnonzero(outside).tolist()})."
+        )
+    return lower, upper
+
+
+def _per_state(argument: str, values, n_states: int, dtype) -> np.ndarray:
+    """``values`` as one entry per state (a scalar applies to all)."""
+    array = np.asarray(values, dtype=dtype)
+    if array.ndim > 1 or array.size not in (1, n_states):
+        raise ValueError(
+            f"{argument} must be a scalar or have one entry per state ({n_states}), "
+            f"got shape {array.shape}."
+        )
+    return np.broadcast_to(array.reshape(-1), (n_states,)).copy()
+
+
 def _as_parameter(name: str, spec) -> Parameter:
     if isinstance(spec, Parameter):
         return spec
@@ -179,8 +207,8 @@ class PhysicsModel:
         self.output = output if callable(output) else MeasuredStates(output, self.n_states)
         self.parameters = {str(k): _as_parameter(str(k), v) for k, v in parameters.items()}
         self.x0 = self._initial_state(x0)
-        self.x0_fixed = np.broadcast_to(np.asarray(x0_fixed, dtype=bool), (self.n_states,)).copy()
-        self.x0_bounds = _bound_pair(x0_bounds)
+        self.x0_fixed = _per_state("x0_fixed", x0_fixed, self.n_states, bool)
+        self.x0_bounds = _checked_bounds("x0_bounds", x0_bounds, self.x0)
         self.state_names = _check_names(
             "state_names", state_names or _default_names("x", self.n_states), self.n_states
         )

@@ -119,9 +119,60 @@ def test_a_single_sample_cannot_be_simulated(data):
         _fit(u[:1], z[:1])
 
 
-def test_delta_states_out_of_range(data):
-    with pytest.raises(ValueError, match=r"delta_states must be indices in \[0, 2\)"):
-        _fit(*data, library=ps.PolynomialLibrary(degree=1), delta_states=[2])
+@pytest.mark.parametrize("states", [[2], [0, 0], [0.7], [], [[0, 1]]])
+def test_delta_states_must_be_distinct_indices(data, states):
+    with pytest.raises(ValueError, match=r"delta_states must be distinct integer indices"):
+        _fit(*data, library=ps.PolynomialLibrary(degree=1), delta_states=states)
+
+
+@pytest.mark.parametrize("name", ["horizon", "max_iter", "init_window"])
+def test_integer_settings_refuse_booleans(data, name):
+    with pytest.raises(ValueError, match=f"{name} must be an integer, got True"):
+        _fit(*data, **{name: True})
+
+
+def test_optimizer_must_be_an_optax_transformation(data):
+    with pytest.raises(TypeError, match="optimizer must be an optax.GradientTransformation"):
+        _fit(*data, solver="optax", optimizer="adam")
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"x0_bounds": (10.0, 0.0)}, "x0_bounds must satisfy lower <= upper"),
+        ({"x0_bounds": (0.0, 1.0)}, "lies outside x0_bounds"),
+        ({"x0_bounds": (0.0,)}, "x0_bounds must be a"),
+        ({"x0_fixed": [True, False, True]}, "x0_fixed must be a scalar or have one entry"),
+    ],
+)
+def test_initial_state_settings_are_checked(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        _physics(tanks_step, **kwargs)
+
+
+def test_certificates_need_a_fitted_estimator(data):
+    from sklearn.exceptions import NotFittedError
+
+    from sk_offwhite.certify import parameter_error_bound
+
+    with pytest.raises(NotFittedError):
+        parameter_error_bound(GreyBoxSparseRegressor(tanks_physics()), *data)
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"gammas": (-1.0, 1.0)}, "gammas must be None or finite values >= 0"),
+        ({"gammas": ()}, "gammas must be None or finite values >= 0"),
+        ({"n_folds": 1}, "n_folds must be an integer >= 2"),
+        ({"n_folds": 2.5}, "n_folds must be an integer >= 2"),
+    ],
+)
+def test_loop_settings_are_checked(kwargs, message):
+    from sk_offwhite.loop import LoopSettings
+
+    with pytest.raises(ValueError, match=message):
+        LoopSettings(**kwargs)
 
 
 def test_unsupported_library_is_rejected(data):

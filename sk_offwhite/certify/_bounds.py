@@ -47,6 +47,7 @@ from dataclasses import dataclass
 
 import jax
 import numpy as np
+from sklearn.utils.validation import check_is_fitted
 
 from ._ident_derivatives import mixed_derivatives
 from ._ident_problem import LocalProblem, local_problem
@@ -250,6 +251,7 @@ def parameter_error_bound(
         ``.bound``, ``.m_u``, ``.m_z``, ``.m_delta``, ``.summary()``.
     """
     p, q = _check_norm("noise_norm", noise_norm), _check_norm("error_norm", error_norm)
+    check_is_fitted(estimator)
     sizes = _check_sizes(noise_u, noise_z, delta_norm)
     states = _disturbed_states(estimator, disturbed_states)
     with jax.enable_x64(True):

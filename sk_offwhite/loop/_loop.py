@@ -104,6 +104,12 @@ class LoopSettings:
     def __post_init__(self):
         if self.max_candidates is not None and self.max_candidates < 1:
             raise ValueError(f"max_candidates must be None or >= 1, got {self.max_candidates}.")
+        if self.gammas is not None and not (
+            len(self.gammas) > 0 and all(np.isfinite(g) and g >= 0 for g in self.gammas)
+        ):
+            raise ValueError(f"gammas must be None or finite values >= 0, got {self.gammas}.")
+        if isinstance(self.n_folds, bool) or not int(self.n_folds) == self.n_folds >= 2:
+            raise ValueError(f"n_folds must be an integer >= 2, got {self.n_folds!r}.")
 
 
 @dataclass
