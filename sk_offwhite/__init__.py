@@ -20,7 +20,7 @@ from ._effects import (
     augment,
     switched,
 )
-from ._estimator import GreyBoxSparseRegressor, expected_failed_checks
+from ._estimator import DivergenceWarning, GreyBoxSparseRegressor, expected_failed_checks
 from ._path import GammaPath, fit_gamma_path, gamma_grid
 from ._physics import Parameter, PhysicsModel
 
@@ -29,6 +29,7 @@ __all__ = [
     "Bias",
     "DeadZone",
     "DictionaryTerm",
+    "DivergenceWarning",
     "Effect",
     "Friction",
     "GammaPath",

@@ -589,14 +589,18 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
             Initial state. ``None`` uses ``z_init`` if given, else ``x0_``.
         z_init : array-like of shape (n_init,) or (n_init, n_outputs), default=None
             First measured outputs; the initial state is estimated from them with the
-            fitted parameters fixed.
+            fitted parameters fixed. With a list of input records, a list with one entry
+            (or ``None``) per record.
 
         Returns
         -------
         z_sim : ndarray of shape (n_samples,) or (n_samples, n_outputs), or list
+            A simulation that diverges gives non-finite values after the sample where it
+            does, with a :class:`DivergenceWarning` naming that sample.
         """
         if is_experiment_list(u):
-            return [self.predict(ue, x0=x0) for ue in u]
+            starts = _per_record("z_init", z_init, len(u))
+            return [self.predict(ue, x0=x0, z_init=zi) for ue, zi in zip(u, starts, strict=True)]
         outputs = self.simulate(u, x0=x0, z_init=z_init).outputs
         return outputs.ravel() if self._z_was_1d else outputs
 
@@ -617,11 +621,12 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         u = check_inputs(u)
         self._check_widths(u.shape[1], reset=False)
         if z_init is not None:
-            z_init = np.asarray(z_init, float).reshape(len(z_init), -1)
+            z_init = _checked_z_init(z_init, u.shape[0], self.n_outputs_)
         with jax.enable_x64(True):
             model = self._fitted_model()
             start = self._initial_state(model, u, z_init, x0)
             states, outputs, deltas = self._simulate_record(model, u, start)
+        _warn_if_diverged(outputs)
         return Bunch(outputs=outputs, states=states, correction=deltas, x0=np.asarray(start))
 
     def _score_window(self, n_samples: int) -> int:
@@ -643,7 +648,9 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         measured, simulated = [], []
         for u_r, z_r in records:
             window = self._score_window(u_r.shape[0])
-            z_sim = self.predict(u_r, z_init=z_r[:window] if window else None)
+            with warnings.catch_warnings():  # one warning below, for the whole score
+                warnings.simplefilter("ignore", DivergenceWarning)
+                z_sim = self.predict(u_r, z_init=z_r[:window] if window else None)
             measured.append(z_r[window:])
             simulated.append(np.asarray(z_sim).reshape(len(u_r), -1)[window:])
         simulated = np.concatenate(simulated)
@@ -682,3 +689,48 @@ def _check_counts(est: GreyBoxSparseRegressor) -> None:
     for name in ("horizon", "max_iter", "init_window"):
         if isinstance(getattr(est, name), bool | np.bool_):
             raise ValueError(f"{name} must be an integer, got {getattr(est, name)!r}.")
+
+
+class DivergenceWarning(RuntimeWarning):
+    """A simulation of the fitted model left the finite numbers."""
+
+
+def _warn_if_diverged(outputs: np.ndarray) -> None:
+    finite = np.all(np.isfinite(outputs), axis=1)
+    if not np.all(finite):
+        first = int(np.argmin(finite))
+        warnings.warn(
+            f"The simulation diverged: its outputs are not finite from sample {first} of "
+            f"{len(finite)} on (an unstable fitted model, or inputs outside the fitted range).",
+            DivergenceWarning,
+            stacklevel=3,
+        )
+
+
+def _checked_z_init(z_init, n_samples: int, n_outputs: int) -> np.ndarray:
+    """``z_init`` as ``(n_init, n_outputs)`` finite floats covering at most the record."""
+    if is_experiment_list(z_init):
+        raise ValueError("z_init is a list, but u is one record: pass one array.")
+    values = np.asarray(z_init, float)
+    values = values.reshape(len(values), -1) if values.ndim else values.reshape(1, -1)
+    if values.shape[1] != n_outputs or len(values) > n_samples:
+        raise ValueError(
+            f"z_init must have shape (n_init, {n_outputs}) with n_init <= {n_samples} (the "
+            f"length of u), got {np.shape(z_init)}."
+        )
+    if not np.all(np.isfinite(values)):
+        raise ValueError("z_init must be finite: it holds NaN or inf.")
+    return values
+
+
+def _per_record(name: str, values, n_records: int) -> list:
+    """``values`` for each of ``n_records`` records: ``None`` for all, or a list of them."""
+    if values is None:
+        return [None] * n_records
+    one_each = isinstance(values, list | tuple) and len(values) == n_records
+    if not (one_each and all(v is None or np.ndim(v) >= 1 for v in values)):
+        raise ValueError(
+            f"with {n_records} input records, {name} must be None or a list of {n_records} "
+            "arrays (one per record)."
+        )
+    return list(values)

@@ -7,7 +7,7 @@ import pysindy as ps
 import pytest
 from conftest import TANKS_TRUE, tanks_physics, tanks_step
 
-from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel
+from sk_offwhite import DivergenceWarning, GreyBoxSparseRegressor, Parameter, PhysicsModel
 
 
 @pytest.fixture
@@ -224,3 +224,45 @@ def test_fit_leaves_global_jax_configuration_alone(data):
 def test_missing_outputs_are_named(data):
     with pytest.raises(ValueError, match="z is None"):
         _fit(data[0], None)
+
+
+@pytest.fixture
+def fitted(data):
+    return _fit(*data, max_iter=20), data
+
+
+@pytest.mark.parametrize(
+    ("z_init", "message"),
+    [
+        (np.array([[1.0], [np.nan]]), "z_init must be finite"),
+        (np.array([[1.0], [np.inf]]), "z_init must be finite"),
+        (np.ones((3, 2)), r"z_init must have shape \(n_init, 1\)"),
+        (np.ones((500, 1)), "n_init <= 200"),
+        ([np.ones((3, 1)), np.ones((3, 1))], "z_init is a list, but u is one record"),
+    ],
+)
+def test_predict_refuses_a_bad_z_init(fitted, z_init, message):
+    est, (u, _) = fitted
+    with pytest.raises(ValueError, match=message):
+        est.predict(u, z_init=z_init)
+
+
+def test_predict_on_records_takes_one_z_init_each(fitted):
+    est, (u, z) = fitted
+    records = [u[:100], u[100:]]
+    with pytest.raises(ValueError, match="z_init must be None or a list of 2 arrays"):
+        est.predict(records, z_init=z[:10])
+    together = est.predict(records, z_init=[z[:10], z[100:110]])
+    np.testing.assert_allclose(together[1], est.predict(u[100:], z_init=z[100:110]))
+    assert not np.allclose(together[1], est.predict(u[100:]))  # z_init is not ignored
+
+
+def test_a_diverging_simulation_says_where():
+    from sk_offwhite.datasets import make_leaky_tank
+
+    tank = make_leaky_tank(n_samples=300, random_state=0)
+    est = GreyBoxSparseRegressor(None, max_iter=5).fit(tank.u, tank.z)  # linear x+ = A x + B u
+    est.theta_ = np.where(np.array(est.physics_.parameter_names) == "A[0,0]", 1e3, est.theta_)
+    with pytest.warns(DivergenceWarning, match="not finite from sample"):
+        outputs = est.predict(tank.u)
+    assert not np.all(np.isfinite(outputs))
