@@ -712,6 +712,8 @@ def _checked_z_init(z_init, n_samples: int, n_outputs: int) -> np.ndarray:
     if is_experiment_list(z_init):
         raise ValueError("z_init is a list, but u is one record: pass one array.")
     values = np.asarray(z_init, float)
+    if values.size == 0:  # no initial window: the fitted initial state
+        return values.reshape(0, n_outputs)
     values = values.reshape(len(values), -1) if values.ndim else values.reshape(1, -1)
     if values.shape[1] != n_outputs or len(values) > n_samples:
         raise ValueError(

@@ -247,6 +247,11 @@ def test_predict_refuses_a_bad_z_init(fitted, z_init, message):
         est.predict(u, z_init=z_init)
 
 
+def test_an_empty_z_init_starts_from_the_fitted_state(fitted):
+    est, (u, _) = fitted
+    np.testing.assert_array_equal(est.predict(u, z_init=np.zeros((0, 1))), est.predict(u))
+
+
 def test_predict_on_records_takes_one_z_init_each(fitted):
     est, (u, z) = fitted
     records = [u[:100], u[100:]]
