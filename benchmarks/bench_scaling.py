@@ -61,8 +61,8 @@ def tanks_data(n_samples: int):
     return u, z, physics
 
 
-def value_and_grad_problem(u, z, physics, library=None, horizon=None):
-    """Jitted value-and-gradient of the fit cost and its starting point."""
+def cost_problem(u, z, physics, library=None, horizon=None, weights=(0.1, 0.0, 0.0, 10.0, 1000.0)):
+    """The fit cost's static structure and data: ``(model, layout, problem, free0)``."""
     est = GreyBoxSparseRegressor(physics, library=library, horizon=horizon)
     basis, model = est._compile(physics)
     records = [(u, z)]
@@ -70,10 +70,15 @@ def value_and_grad_problem(u, z, physics, library=None, horizon=None):
     blocks = initial_blocks(physics, basis, model, records, segments, horizon)
     free = free_blocks(physics, basis, model, segments)
     layout = Layout.from_arrays(blocks)
-    weights = (0.1, 0.0, 0.0, 10.0, 1000.0)
     problem, free0 = make_problem(
         layout, blocks, free, bound_blocks(physics, blocks), segments, weights
     )
+    return model, layout, problem, free0
+
+
+def value_and_grad_problem(u, z, physics, library=None, horizon=None):
+    """Jitted value-and-gradient of the fit cost and its starting point."""
+    model, layout, problem, free0 = cost_problem(u, z, physics, library, horizon)
 
     def cost(f):
         residuals = free_residuals(f, problem, model, layout)

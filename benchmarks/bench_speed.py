@@ -154,37 +154,18 @@ def _summary(runs: list[dict], keys) -> dict:
 
 
 def _lm_problem(n_samples: int, library):
-    """The solver's programs and data for the tanks cost at ``n_samples`` samples."""
+    """The solver's data for the tanks cost at ``n_samples`` samples (the measured record
+    repeated): ``(model, layout, problem, free0)``."""
     import numpy as np
+    from bench_scaling import cost_problem  # same folder: run as a script
 
-    from sk_offwhite import GreyBoxSparseRegressor
-    from sk_offwhite._layout import Layout
-    from sk_offwhite._problem import (
-        bound_blocks,
-        free_blocks,
-        initial_blocks,
-        make_problem,
-        scaled_weights,
-    )
-    from sk_offwhite._segments import make_segments
     from sk_offwhite.datasets import cascaded_tanks_physics
 
     u, z = _tanks_record()
     repeats = -(-n_samples // len(u))
     u, z = np.tile(u, (repeats, 1))[:n_samples], np.tile(z, (repeats, 1))[:n_samples]
     physics = cascaded_tanks_physics(fixed={"k4": K4})
-    est = GreyBoxSparseRegressor(physics, library=library)
-    basis, model = est._compile(physics)
-    records = [(u, z)]
-    segments = make_segments(records, None)
-    blocks = initial_blocks(physics, basis, model, records, segments, None)
-    layout = Layout.from_arrays(blocks)
-    weights = scaled_weights((1e-3, 0.0, 0.0, 1.0, 1.0), records, blocks["x0"])
-    free = free_blocks(physics, basis, model, segments)
-    problem, free0 = make_problem(
-        layout, blocks, free, bound_blocks(physics, blocks), segments, weights
-    )
-    return model, layout, problem, free0
+    return cost_problem(u, z, physics, library, weights=(1e-3, 0.0, 0.0, 1.0, 1.0))
 
 
 def _timed(function, repeats: int) -> list[float]:

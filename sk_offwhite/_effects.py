@@ -530,7 +530,7 @@ class Switched(Effect):
         return f"{self.name}_on"
 
     def parameters(self) -> dict[str, Parameter]:
-        return {**self.effect.parameters(), self.switch: Parameter(1.0, (0.0, 1.0), fixed=True)}
+        return {**self.effect.parameters(), self.switch: _switch_value(True)}
 
     def on(self, theta):
         """Whether the effect acts (a traced boolean)."""
@@ -574,7 +574,11 @@ def switches(effects, on) -> dict[str, Parameter]:
     """Switch parameters of the switched ``effects``: ``1`` for those in ``on``, else ``0``
     (to pass to :meth:`PhysicsModel.with_parameters`)."""
     names = {e.name for e in on}
-    return {e.switch: Parameter(float(e.name in names), (0.0, 1.0), fixed=True) for e in effects}
+    return {e.switch: _switch_value(e.name in names) for e in effects}
+
+
+def _switch_value(on: bool) -> Parameter:
+    return Parameter(float(on), (0.0, 1.0), fixed=True)
 
 
 class _EffectChain:
