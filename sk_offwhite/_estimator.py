@@ -498,9 +498,10 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
                 "change physics.x0, the parameter values or use a shorter horizon."
             )
         if not result.converged:
+            unfinished = result.message == "max_iter reached"
+            advice = f"increase max_iter (now {self.max_iter})" if unfinished else None
             warnings.warn(
-                f"The fit did not converge in max_iter={self.max_iter} iterations "
-                f"({result.message}); increase max_iter.",
+                f"The fit did not converge: {result.message}" + (f"; {advice}." if advice else "."),
                 ConvergenceWarning,
                 stacklevel=3,
             )
