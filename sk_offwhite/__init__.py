@@ -23,6 +23,7 @@ from ._effects import (
 from ._estimator import DivergenceWarning, GreyBoxSparseRegressor, expected_failed_checks
 from ._path import GammaPath, fit_gamma_path, gamma_grid
 from ._physics import Parameter, PhysicsModel
+from ._splitters import SequenceSplit, SequenceWarning
 
 __all__ = [
     "AdditiveEffect",
@@ -43,6 +44,8 @@ __all__ = [
     "PhysicsModel",
     "QuadraticDrag",
     "RidgeBasis",
+    "SequenceSplit",
+    "SequenceWarning",
     "Stiffness",
     "Switched",
     "augment",

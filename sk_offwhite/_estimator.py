@@ -32,6 +32,7 @@ from ._problem import (
 from ._rollout import free_run
 from ._segments import split_at_gaps
 from ._sparsity import SparseOptions
+from ._splitters import check_sample_index, warn_if_fragmented
 from ._validation import (
     as_records,
     check_input_width,
@@ -231,6 +232,9 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     index of each row) when rows come from non-adjacent blocks, e.g. to
     ``GridSearchCV.fit(u, z, sample_index=np.arange(n))``: every gap then starts a new record
     with its own initial state instead of being simulated through.
+    :class:`~sk_offwhite.SequenceSplit` makes folds whose training rows are contiguous,
+    which need no ``sample_index``. A ``sample_index`` that cuts out records of a single
+    row, as shuffled folds do, issues a :class:`~sk_offwhite.SequenceWarning`.
     """
 
     _parameter_constraints: dict = {
@@ -345,7 +349,10 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         self._check_widths(u.shape[1], reset)
         if reset:
             self._z_was_1d = z.ndim == 1
-        return split_at_gaps(u, z.reshape(z.shape[0], -1), sample_index)
+        records = split_at_gaps(u, z.reshape(z.shape[0], -1), check_sample_index(sample_index))
+        if sample_index is not None:
+            warn_if_fragmented(records, stacklevel=5 if reset else 3)  # from fit / score
+        return records
 
     def _check_widths(self, n_inputs: int, reset: bool) -> None:
         if reset:
