@@ -14,9 +14,9 @@ import optax
 from sklearn.base import BaseEstimator, RegressorMixin, _fit_context, clone
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.metrics import r2_score
-from sklearn.utils import Bunch
+from sklearn.utils import Bunch, metadata_routing
 from sklearn.utils._param_validation import Interval, StrOptions
-from sklearn.utils.validation import _check_feature_names, check_is_fitted
+from sklearn.utils.validation import _check_feature_names, _check_sample_weight, check_is_fitted
 
 from ._basis import compile_basis
 from ._equations import format_equations
@@ -234,8 +234,15 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     with its own initial state instead of being simulated through.
     :class:`~sk_offwhite.SequenceSplit` makes folds whose training rows are contiguous,
     which need no ``sample_index``. A ``sample_index`` that cuts out records of a single
-    row, as shuffled folds do, issues a :class:`~sk_offwhite.SequenceWarning`.
+    row, as shuffled folds do, issues a :class:`~sk_offwhite.SequenceWarning`. With metadata
+    routing enabled, request ``sample_index`` with ``set_fit_request(sample_index=True)``
+    (and ``set_score_request``); ``clone`` keeps these requests.
     """
+
+    # u and z are the data (X and y), not metadata to route: only sample_index is.
+    __metadata_request__fit = {"u": metadata_routing.UNUSED, "z": metadata_routing.UNUSED}
+    __metadata_request__score = {"u": metadata_routing.UNUSED, "z": metadata_routing.UNUSED}
+    __metadata_request__predict = {"u": metadata_routing.UNUSED}
 
     _parameter_constraints: dict = {
         "physics": [PhysicsModel, None],
@@ -321,7 +328,10 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
 
     def __sklearn_clone__(self):
         params = {k: _safe_clone(v) for k, v in self.get_params(deep=False).items()}
-        return type(self)(**params)
+        new = type(self)(**params)
+        if hasattr(self, "_metadata_request"):  # set_fit_request & co., as sklearn.clone
+            new._metadata_request = clone(self._metadata_request)
+        return new
 
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()
@@ -642,7 +652,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
             return min(self.init_window, n_samples - 1)
         return min(50, n_samples // 5)
 
-    def score(self, u, z, sample_index=None):
+    def score(self, u, z, sample_index=None, sample_weight=None):
         """:math:`R^2` of the simulated output, after estimating each record's initial state.
 
         The first ``init_window`` samples of every contiguous record (see ``sample_index``)
@@ -650,17 +660,32 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         excluded from the score. With ``init_window=0`` records start from ``x0_``. A
         simulation that diverges scores ``-inf`` (with a ``RuntimeWarning``), so model
         selection never picks it.
+
+        Parameters
+        ----------
+        u : array-like of shape (n_samples, n_inputs) or list of such arrays
+        z : array-like of shape (n_samples,) or (n_samples, n_outputs), or list
+        sample_index : array-like of shape (n_samples,), default=None
+            Original time index of each row; a jump starts a new record.
+        sample_weight : array-like of shape (n_samples,), default=None
+            Weights of the scored samples in :math:`R^2` (all rows of a list of records,
+            in order).
+
+        Returns
+        -------
+        score : float
         """
         check_is_fitted(self)
         records = self._records(u, z, sample_index, reset=False)
-        measured, simulated = [], []
-        for u_r, z_r in records:
+        measured, simulated, weights = [], [], []
+        for (u_r, z_r), w_r in zip(records, _record_weights(sample_weight, records), strict=True):
             window = self._score_window(u_r.shape[0])
             with warnings.catch_warnings():  # one warning below, for the whole score
                 warnings.simplefilter("ignore", DivergenceWarning)
                 z_sim = self.predict(u_r, z_init=z_r[:window] if window else None)
             measured.append(z_r[window:])
             simulated.append(np.asarray(z_sim).reshape(len(u_r), -1)[window:])
+            weights.append(w_r[window:])
         simulated = np.concatenate(simulated)
         if not np.all(np.isfinite(simulated)):
             warnings.warn(
@@ -669,7 +694,8 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
                 stacklevel=2,
             )
             return -np.inf
-        return r2_score(np.concatenate(measured), simulated)
+        weight = None if sample_weight is None else np.concatenate(weights)
+        return r2_score(np.concatenate(measured), simulated, sample_weight=weight)
 
     # ------------------------------------------------------------------ read-out
     def equations(self, precision: int = 4) -> list[str]:
@@ -731,6 +757,14 @@ def _checked_z_init(z_init, n_samples: int, n_outputs: int) -> np.ndarray:
     if not np.all(np.isfinite(values)):
         raise ValueError("z_init must be finite: it holds NaN or inf.")
     return values
+
+
+def _record_weights(sample_weight, records: list[tuple]) -> list[np.ndarray]:
+    """``sample_weight`` cut into the records' rows (ones where it is ``None``)."""
+    lengths = [u.shape[0] for u, _ in records]
+    rows = np.empty((sum(lengths), 0))
+    weights = _check_sample_weight(sample_weight, rows, ensure_non_negative=True)
+    return np.split(weights, np.cumsum(lengths)[:-1])
 
 
 def _per_record(name: str, values, n_records: int) -> list:

@@ -1,4 +1,4 @@
-"""Cross-validation on sequences: SequenceSplit and the sample_index checks."""
+"""Cross-validation on sequences: SequenceSplit, the sample_index checks, metadata routing."""
 
 import warnings
 
@@ -8,6 +8,8 @@ import pytest
 import sklearn
 from sklearn.base import clone
 from sklearn.model_selection import GridSearchCV, KFold, TimeSeriesSplit, cross_val_score
+from sklearn.pipeline import Pipeline
+from sklearn.preprocessing import FunctionTransformer
 
 from sk_offwhite import GreyBoxSparseRegressor, SequenceSplit, SequenceWarning
 from sk_offwhite.datasets import make_leaky_tank
@@ -206,3 +208,37 @@ def test_integral_float_sample_index_is_the_integer_one(tank):
         as_float = linear().fit(u[keep], z[keep], sample_index=keep.astype(float))
     np.testing.assert_array_equal(as_int.initial_states_, as_float.initial_states_)
     assert as_int.initial_states_.shape[0] == 2
+
+
+# ---------------------------------------------------------------------- metadata routing
+def test_only_sample_index_is_routable_metadata():
+    routing = GreyBoxSparseRegressor().get_metadata_routing()
+    assert set(routing.fit.requests) == {"sample_index"}
+    assert set(routing.score.requests) == {"sample_index", "sample_weight"}
+    assert "u" not in routing.predict.requests
+
+
+def test_clone_keeps_the_metadata_requests():
+    with sklearn.config_context(enable_metadata_routing=True):
+        est = GreyBoxSparseRegressor(gamma=0.5).set_fit_request(sample_index=True)
+        est.set_score_request(sample_index="time")
+        copy = clone(est)
+        assert copy.get_metadata_routing().fit.requests == {"sample_index": True}
+        assert copy.get_metadata_routing().score.requests["sample_index"] == "time"
+        assert copy.gamma == 0.5
+
+
+def test_grid_search_over_a_pipeline_routes_sample_index(tank):
+    """Metadata routing on: the two runs of each training fold reach fit as two records."""
+    u, z = tank
+    cv = SequenceSplit(3, train="rest")
+    grid = {"max_iter": [5, 20]}
+    with sklearn.config_context(enable_metadata_routing=True), warnings.catch_warnings():
+        warnings.simplefilter("ignore", sklearn.exceptions.ConvergenceWarning)
+        est = linear().set_fit_request(sample_index=True).set_score_request(sample_index=True)
+        pipe = Pipeline([("identity", FunctionTransformer()), ("model", est)])
+        search = GridSearchCV(pipe, {"model__max_iter": grid["max_iter"]}, cv=cv, n_jobs=1)
+        search.fit(u, z, sample_index=np.arange(len(u)))
+        expected = explicit_scores(linear(), u, z, cv, grid)
+    for max_iter, scores in search_scores(search).items():
+        np.testing.assert_allclose(scores, expected[max_iter], rtol=1e-8)
