@@ -210,6 +210,20 @@ def test_integral_float_sample_index_is_the_integer_one(tank):
     assert as_int.initial_states_.shape[0] == 2
 
 
+def test_score_weights_the_scored_samples(tank):
+    """Zero weights on the second record score the first one alone."""
+    u, z = tank
+    keep = np.r_[0:100, 140:240]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sklearn.exceptions.ConvergenceWarning)
+        est = linear().fit(u, z)
+    weights = np.r_[np.ones(100), np.zeros(100)]
+    weighted = est.score(u[keep], z[keep], sample_index=keep, sample_weight=weights)
+    assert weighted == pytest.approx(est.score(u[:100], z[:100]), rel=1e-12)
+    with pytest.raises(ValueError, match="sample_weight"):
+        est.score(u, z, sample_weight=np.ones(3))
+
+
 # ---------------------------------------------------------------------- metadata routing
 def test_only_sample_index_is_routable_metadata():
     routing = GreyBoxSparseRegressor().get_metadata_routing()
