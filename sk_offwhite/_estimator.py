@@ -168,7 +168,10 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         Weight of the window-continuity penalty when ``horizon`` is set.
     solver : {'auto', 'lm', 'optax'}, default='auto'
         ``'lm'``: projected Levenberg-Marquardt with forward-mode Jacobians; ``'optax'``:
-        ``optimizer`` with reverse-mode gradients; ``'auto'``: LM up to 400 free variables.
+        ``optimizer`` with reverse-mode gradients; ``'auto'``: LM with a ``horizon`` or up
+        to 400 free variables. With a horizon and over 100 free variables LM builds the
+        Jacobian by window colouring (``G + 2 n_x`` tangents for ``G`` global variables,
+        however many windows) and solves sparse normal equations.
     optimizer : optax.GradientTransformation, default=None
         Used by the optax solver; ``None`` is Adam (cosine-decayed from 1e-2) behind global
         norm clipping at 1.
@@ -511,8 +514,9 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     def _warn_if_unfinished(self, result) -> None:
         if not np.isfinite(result.cost):
             raise ValueError(
-                "the simulation of the initial guess is not finite (the model diverges); "
-                "change physics.x0, the parameter values or use a shorter horizon."
+                "the simulation is not finite from the initial guess nor after a restart "
+                "from fits over short windows (the model diverges); change physics.x0 or "
+                "the parameter values."
             )
         if not result.converged:
             unfinished = result.message == "max_iter reached"

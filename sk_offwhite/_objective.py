@@ -42,9 +42,11 @@ from ._rollout import Model, theta_dict
 
 __all__ = [
     "CostWeights",
+    "ResidualParts",
     "majorised_l1",
     "majoriser_constant",
     "n_fit_residuals",
+    "residual_parts",
     "residuals",
     "rollout_segments",
     "smooth_abs",
@@ -154,17 +156,33 @@ def majoriser_constant(omega, omega_free, weights):
     return weights.gamma * constant
 
 
-def residuals(model: Model, params: dict, segments, omega_free, weights: CostWeights):
-    r"""Stacked residual vector :math:`r` with :math:`C = \|r\|^2` (see module docstring)."""
+class ResidualParts(NamedTuple):
+    r"""The parts of :func:`residuals`, in stacking order: ``fit`` and the two constraint
+    parts are segment-major (each segment's rows together), ``shooting`` one row block per
+    link between consecutive segments, ``sparsity`` one row per entry of :math:`\Omega`."""
+
+    fit: jax.Array
+    shooting: jax.Array
+    sparsity: jax.Array
+    inequality: jax.Array
+    equality: jax.Array
+
+
+def residual_parts(model: Model, params: dict, segments, omega_free, weights: CostWeights):
+    """The terms of the cost as residual vectors (:class:`ResidualParts`)."""
     states, outputs, finals = rollout_segments(model, params, segments)
-    parts = [
+    return ResidualParts(
         _fit_residual(outputs, segments, weights.output_scale),
         _shooting_residual(finals, params, segments, weights),
         _sparsity_residual(params, omega_free, weights),
         _constraint_residual(model, model.inequality, params, states, segments, weights.lam, True),
         _constraint_residual(model, model.equality, params, states, segments, weights.nu, False),
-    ]
-    return jnp.concatenate(parts)
+    )
+
+
+def residuals(model: Model, params: dict, segments, omega_free, weights: CostWeights):
+    r"""Stacked residual vector :math:`r` with :math:`C = \|r\|^2` (see module docstring)."""
+    return jnp.concatenate(residual_parts(model, params, segments, omega_free, weights))
 
 
 def n_fit_residuals(segments) -> int:

@@ -24,7 +24,7 @@ import optax
 from sklearn.exceptions import ConvergenceWarning
 
 from ._layout import Layout
-from ._objective import CostWeights, majoriser_constant, residuals
+from ._objective import CostWeights, majoriser_constant, n_fit_residuals, residuals
 from ._rollout import Model
 from ._segments import Segments
 
@@ -54,7 +54,11 @@ class Problem(NamedTuple):
 
 
 class SolverResult(NamedTuple):
-    """Outcome of a solver run: best finite iterate and its diagnostics."""
+    """Outcome of a solver run: best finite iterate and its diagnostics.
+
+    ``fit`` is the normalised fit term :math:`F` at ``free`` (``nan`` where the solver did
+    not compute it separately from ``cost``).
+    """
 
     free: np.ndarray
     cost: float
@@ -62,6 +66,7 @@ class SolverResult(NamedTuple):
     n_iter: int
     converged: bool
     message: str
+    fit: float = float("nan")
 
 
 def free_residuals(free, problem: Problem, model: Model, layout: Layout):
@@ -162,10 +167,14 @@ def _lm_trial(state: _LMState, damping, problem, *, model, layout):
     scale = diag + 1e-9 * jnp.maximum(jnp.max(diag), 1e-30)
     step = jnp.linalg.solve(jtj + jnp.diag(damping * scale), -state.jacobian.T @ state.residual)
     candidate = jnp.clip(state.free + step, problem.lower, problem.upper)
-    anchored = _anchored(problem, state.anchor)
-    r_trial = free_residuals(candidate, anchored, model, layout)
-    constant = majoriser_constant(state.anchor, problem.omega_free, anchored.weights)
-    return candidate, r_trial @ r_trial + constant
+    return candidate, majorised_cost(candidate, state.anchor, problem, model, layout)
+
+
+def majorised_cost(free, anchor, problem, model, layout):
+    """Penalised cost at ``free`` with the L1 term majorised at ``anchor``."""
+    anchored = _anchored(problem, anchor)
+    r = free_residuals(free, anchored, model, layout)
+    return r @ r + majoriser_constant(anchor, problem.omega_free, anchored.weights)
 
 
 def levenberg_marquardt(
@@ -178,7 +187,27 @@ def levenberg_marquardt(
     tol: float,
     verbose: int = 0,
 ) -> SolverResult:
-    r"""Projected Levenberg-Marquardt on :math:`\|r(\cdot)\|^2`.
+    r"""Projected Levenberg-Marquardt on :math:`\|r(\cdot)\|^2` with the dense Jacobian
+    (see :func:`lm_loop` for the steps and stopping rules)."""
+    shape = jax.eval_shape(partial(free_residuals, model=model, layout=layout), free0, problem)
+    forward = free0.shape[0] <= int(shape.shape[0])
+    static = dict(model=model, layout=layout)
+
+    def linearise(free):
+        return _lm_linearise(free, problem, forward=forward, **static)
+
+    def trial(state, damping):
+        candidate, cost = _lm_trial(state, damping, problem, **static)
+        return candidate, float(cost)
+
+    return lm_loop(linearise, trial, free0, problem, max_iter=max_iter, tol=tol, verbose=verbose)
+
+
+def lm_loop(linearise, trial, free0, problem, *, max_iter, tol, verbose=0) -> SolverResult:
+    r"""The Levenberg-Marquardt iteration over a linearisation and a trial step.
+
+    ``linearise(free)`` returns a state with ``free``, ``residual`` and ``cost`` at
+    ``free``; ``trial(state, damping)`` the damped, projected candidate and its cost.
 
     Stops when a nearly undamped (Gauss-Newton, damping below ``1``) accepted step lowers
     the cost by less than ``tol`` (relative), when the cost reaches :data:`ROUNDING_COST`
@@ -186,18 +215,14 @@ def levenberg_marquardt(
     descent step exists: a stationary point up to numerical precision). A small decrease
     under heavy damping only means the step was short, not that the fit has converged.
     """
-    shape = jax.eval_shape(partial(free_residuals, model=model, layout=layout), free0, problem)
-    forward = free0.shape[0] <= int(shape.shape[0])
-    static = dict(model=model, layout=layout)
-    state = _lm_linearise(free0, problem, forward=forward, **static)
+    state = linearise(free0)
     damping = 1e-3
     history, message, converged = [float(state.cost)], "max_iter reached", False
     for iteration in range(1, max_iter + 1):
         previous = history[-1]
-        candidate, trial_cost = _lm_trial(state, damping, problem, **static)
-        trial_cost = float(trial_cost)
+        candidate, trial_cost = trial(state, damping)
         if np.isfinite(trial_cost) and trial_cost < previous:
-            state = _lm_linearise(candidate, problem, forward=forward, **static)
+            state = linearise(candidate)
             history.append(float(state.cost))
             _report(verbose, iteration, history[-1], damping)
             small = previous - history[-1] <= tol * max(previous, 1e-300)
@@ -213,8 +238,11 @@ def levenberg_marquardt(
             if damping > 1e10:
                 converged, message = True, "no descent step left (stationary point)"
                 break
+    fit_part = np.asarray(state.residual)[: n_fit_residuals(problem.segments)]
+    with np.errstate(over="ignore"):
+        fit = float(fit_part @ fit_part)
     return SolverResult(
-        np.asarray(state.free), history[-1], np.asarray(history), iteration, converged, message
+        np.asarray(state.free), history[-1], np.asarray(history), iteration, converged, message, fit
     )
 
 

@@ -1,0 +1,82 @@
+r"""A start that works when the initial guess's simulation explodes: continuation in the
+horizon.
+
+From an unstable guess (a pole outside the unit circle, a wrong sign) the simulation over
+a long record grows like :math:`|a|^N` and its cost overflows or is so steep that no solver
+step finds a descent. Over a short window the same guess is harmless: the error grows like
+:math:`|a|^T`. So the physical parameters are first fitted by multiple shooting over windows
+of :data:`FIRST_HORIZON` step, whose initial states start at the data (the measured states,
+:func:`within_reach`): the fit term then pins the window starts to
+the measurements and the continuity term is the one-step (equation) error of the physics,
+which has no explosive direction. Then over windows four times longer, each fit starting
+from the previous one, until the model's free run over the whole records no longer
+explodes or the windows reach the requested horizon.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Iterator
+
+import jax.numpy as jnp
+import numpy as np
+
+from ._rollout import jit_simulate
+
+__all__ = ["FIRST_HORIZON", "continuation_start", "within_reach"]
+
+FIRST_HORIZON = 1
+"""Window length of the first fit of the continuation (steps)."""
+
+
+def _horizons(target: int) -> Iterator[int]:
+    """``FIRST_HORIZON``, four times longer, ..., every one shorter than ``target``."""
+    horizon = FIRST_HORIZON
+    while horizon < target:
+        yield horizon
+        horizon *= 4
+
+
+def continuation_start(
+    fit: Callable, physics, model, records, horizon, weights, options
+) -> dict | None:
+    """Starting blocks (``theta`` and each record's initial state under ``"starts"``) from
+    physics-only fits over lengthening windows (module docstring).
+
+    ``fit`` is :func:`~sk_offwhite._problem.fit_records` without its restart, called as
+    ``fit(physics, None, model, records, horizon, weights, options, warm)`` with the
+    Levenberg-Marquardt solver (the windows make it sparse, see
+    :mod:`~sk_offwhite._structured`). Returns
+    ``None`` when the requested horizon is no longer than :data:`FIRST_HORIZON`.
+    """
+    plain = dataclasses.replace(model, basis=None, delta_states=(), inner_names=())
+    options = options._replace(solver="lm")
+    target = horizon or max(u.shape[0] for u, _ in records)
+    warm = None
+    for window in _horizons(target):
+        outcome = fit(physics, None, plain, records, window, weights, options, warm)
+        starts = np.asarray(outcome.blocks["x0"])[np.asarray(outcome.segments.linked) == 0]
+        warm = {"theta": outcome.blocks["theta"], "starts": list(starts)}
+        if _free_runs_within_reach(plain, warm, records):
+            break
+    return warm
+
+
+def _free_runs_within_reach(model, warm, records) -> bool:
+    """Whether the physics at ``warm`` simulates every record without exploding."""
+    theta = jnp.asarray(warm["theta"])
+    for start, (u, z) in zip(warm["starts"], records, strict=True):
+        _, outputs, _ = jit_simulate(model, {"theta": theta}, jnp.asarray(start), u)
+        if not within_reach(outputs, z):
+            return False
+    return True
+
+
+def within_reach(outputs, z, reach: float = 10.0) -> bool:
+    """Whether simulated ``outputs`` are finite and stay within ``reach`` times the data's
+    largest deviation from its mean (per output): the simulation does not explode."""
+    outputs, z = np.asarray(outputs), np.asarray(z)
+    centre = np.mean(z, axis=0)
+    spread = np.max(np.abs(z - centre), axis=0)
+    deviation = np.abs(outputs - centre)
+    return bool(np.all(np.isfinite(outputs)) and np.all(deviation <= reach * spread + 1e-300))
