@@ -184,9 +184,10 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         (excluded from the score). ``None``: ``min(50, n_samples // 5)``; ``0``: simulate
         from the fitted initial state ``x0_``.
     warm_start : bool, default=False
-        Start ``fit`` from the previous solution (parameters, :math:`\Omega`, inner
-        weights and, for the same number of records, initial states) instead of the
-        physics' guesses, e.g. to refine a short-``horizon`` fit with ``horizon=None``.
+        Start ``fit`` from the previous solution (parameters of the same name,
+        :math:`\Omega` and inner weights of the same shape and, for the same number of
+        records, initial states) instead of the physics' guesses, e.g. to refine a
+        short-``horizon`` fit with ``horizon=None``.
     verbose : int, default=0
         Print solver progress every 10 iterations (every iteration if > 1).
     random_state : int, RandomState instance or None, default=None
@@ -498,7 +499,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         """The previous solution as starting blocks (``warm_start``), else ``None``."""
         if not self.warm_start or not hasattr(self, "theta_"):
             return None
-        return dict(self._fitted_blocks(), starts=self.initial_states_)
+        return dict(self._fitted_blocks(), theta=self.parameters_, starts=self.initial_states_)
 
     def _optimizer(self):
         if self.optimizer is not None:

@@ -107,13 +107,24 @@ def _apply_warm(blocks: dict, guesses: list, warm: dict, fixed: np.ndarray) -> l
     return guesses
 
 
+def _theta_by_name(warm: dict, names, declared) -> dict:
+    """``warm`` whose ``theta``, given as ``{name: value}``, is a vector in the order of
+    ``names`` (declared values for the names it lacks)."""
+    theta = warm.get("theta")
+    if not isinstance(theta, dict):
+        return warm
+    values = [theta.get(name, value) for name, value in zip(names, declared, strict=True)]
+    return dict(warm, theta=np.asarray(values, float))
+
+
 def initial_blocks(physics, basis, model, records, segments, horizon, warm=None) -> dict:
     """Initial value of every block: physics guesses, zero Ω, basis inner values.
 
     Each record starts from ``physics.x0`` with its measured states set to the record's
     first measurement (:func:`initial_state_guess`). ``warm`` (blocks of an earlier fit, its
-    per-record initial states under ``"starts"``) replaces these values where the shapes
-    agree; fixed parameters keep their declared values.
+    per-record initial states under ``"starts"``, its ``theta`` a vector or a mapping by
+    parameter name) replaces these values where the shapes or names agree; fixed
+    parameters keep their declared values.
     """
     blocks = {"theta": physics.parameter_values()}
     guesses = [
@@ -123,6 +134,7 @@ def initial_blocks(physics, basis, model, records, segments, horizon, warm=None)
         blocks["omega"] = np.zeros(basis.omega_trainable.shape)
         blocks.update({k: np.asarray(v, float) for k, v in basis.init_params.items()})
     if warm is not None:
+        warm = _theta_by_name(warm, physics.parameter_names, blocks["theta"])
         fixed = np.array([p.fixed for p in physics.parameters.values()], dtype=bool)
         guesses = _apply_warm(blocks, guesses, warm, fixed)
     blocks["x0"] = np.stack([guesses[r] for r in segments.record])

@@ -64,6 +64,12 @@ def check_pair(u, z) -> tuple[np.ndarray, np.ndarray]:
     return u, z
 
 
+def check_record(u, z) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`check_pair` with ``z`` as a 2-D array ``(n_samples, n_outputs)``."""
+    u, z = check_pair(u, z)
+    return u, z.reshape(z.shape[0], -1)
+
+
 def as_records(u, z) -> list[tuple[np.ndarray, np.ndarray]]:
     """Validate a list of experiments ``[(u_e, z_e)]`` (each 2-D, finite, equal lengths)."""
     if not is_experiment_list(u) or len(u) != len(z):

@@ -271,3 +271,39 @@ def test_a_diverging_simulation_says_where():
     with pytest.warns(DivergenceWarning, match="not finite from sample"):
         outputs = est.predict(tank.u)
     assert not np.all(np.isfinite(outputs))
+
+
+def test_close_the_loop_refuses_outputs_of_another_length():
+    from sk_offwhite.datasets import make_leaky_tank
+    from sk_offwhite.loop import close_the_loop
+
+    tank = make_leaky_tank(n_samples=100, random_state=0)
+    with pytest.raises(ValueError, match="u has 100 samples but z has 200"):
+        close_the_loop(None, None, tank.u, np.vstack([tank.z, tank.z]))
+
+
+def test_dataset_bunches_print():
+    """pysindy's CustomLibrary repr fails on its own; the datasets' libraries print."""
+    from sk_offwhite.datasets import make_vehicle_lateral, vehicle_dictionary_library
+
+    assert "CustomLibrary" in repr(make_vehicle_lateral(n_samples=50, random_state=0))
+    assert repr(vehicle_dictionary_library()).startswith("CustomLibrary(function_names=")
+
+
+@pytest.mark.parametrize("k_init", [[0.1, 0.2], [[0.1] * 4], np.nan])
+def test_tank_guesses_of_the_wrong_length_are_named(k_init):
+    from sk_offwhite.datasets import cascaded_tanks_physics
+
+    with pytest.raises(ValueError, match="k_init must be one finite number or four"):
+        cascaded_tanks_physics(k_init=k_init)
+
+
+def test_warm_start_takes_parameters_by_name(data):
+    """A physics with the same parameters in another order starts where the fit ended."""
+    u, z = data
+    est = GreyBoxSparseRegressor(tanks_physics(x0=[z[0, 0], z[0, 0]]), max_iter=30).fit(u, z)
+    reordered = tanks_physics(x0=[z[0, 0], z[0, 0]])
+    reordered.parameters = dict(reversed(list(reordered.parameters.items())))
+    est.set_params(physics=reordered, warm_start=True, max_iter=1).fit(u, z)
+    assert est.loss_history_[0] == pytest.approx(est.cost_, rel=0.5)
+    assert est.loss_history_[0] < 1e-3

@@ -139,7 +139,10 @@ def cascaded_tanks_rhs(x, u, theta):
 
 
 def _k_values(k_init) -> dict[str, float]:
-    values = np.broadcast_to(np.asarray(k_init, dtype=float), (4,))
+    values = np.asarray(k_init, dtype=float)
+    if values.size not in (1, 4) or values.ndim > 1 or not np.all(np.isfinite(values)):
+        raise ValueError(f"k_init must be one finite number or four (k1..k4), got {k_init!r}.")
+    values = np.broadcast_to(values.reshape(-1), (4,))
     return dict(zip(_PARAMETER_NAMES, values.tolist(), strict=True))
 
 

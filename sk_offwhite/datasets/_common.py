@@ -165,6 +165,20 @@ def _record_noise(output: dict, process: dict, est: tuple, val: tuple) -> dict:
     }
 
 
+def printable(library):
+    """``library`` with every nested pysindy ``CustomLibrary`` made printable (returned).
+
+    pysindy 2.1's ``CustomLibrary`` keeps its ``library_functions`` argument as
+    ``functions``, so its scikit-learn ``repr`` (and so the repr of a Bunch holding it)
+    raises ``AttributeError``; the argument is kept under its own name as well.
+    """
+    for inner in getattr(library, "libraries", ()):
+        printable(inner)
+    if hasattr(library, "functions") and not hasattr(library, "library_functions"):
+        library.library_functions = library.functions
+    return library
+
+
 def _bunch(physics, records, theta, x0s, effect, library, noise, descr, **extra) -> Bunch:
     (u, x, z), (u_val, x_val, z_val) = records
     return Bunch(
@@ -179,7 +193,7 @@ def _bunch(physics, records, theta, x0s, effect, library, noise, descr, **extra)
         true_x0=np.array(x0s[0], dtype=np.float64),
         true_x0_val=np.array(x0s[1], dtype=np.float64),
         hidden_effect=effect,
-        suggested_library=library,
+        suggested_library=None if library is None else printable(library),
         noise=noise,
         state_names=list(physics.state_names),
         input_names=list(physics.input_names),

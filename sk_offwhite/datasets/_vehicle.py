@@ -24,6 +24,7 @@ from sk_offwhite.datasets._common import (
     _rollout,
     _TermName,
     _uniform,
+    printable,
 )
 
 __all__ = ["make_vehicle_lateral", "vehicle_dictionary_library"]
@@ -168,10 +169,11 @@ def vehicle_dictionary_library() -> ps.CustomLibrary:
     library yields exactly the 12 features
     ``[1, x3, x4, x5, x6, x3^2, x4^2, x5^2, x4 x6, x1 x6, x2 x6, x2 x6^2]`` in this order.
     """
-    return ps.CustomLibrary(
+    library = ps.CustomLibrary(
         library_functions=[phi for _, phi, _ in _VEHICLE_TERMS],
         function_names=list(_VEHICLE_TERM_NAMES),
     )
+    return printable(library)
 
 
 def _vehicle_physics(x0) -> PhysicsModel:

@@ -48,6 +48,7 @@ from .._estimator import GreyBoxSparseRegressor
 from .._kinds import physical_kinds
 from .._path import GammaPath, fit_gamma_path
 from .._physics import Parameter
+from .._validation import check_record
 from ..diagnose import analyse_residuals, range_violations
 from ._candidates import promoted_terms, propose_effects, unique_by_name
 from ._hypotheses import evidence_hypotheses, form_hypotheses
@@ -499,7 +500,7 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
         When the declared physics itself cannot be fitted (nothing to compare with).
     """
     settings = settings or LoopSettings()
-    u, z = np.asarray(u, float), np.asarray(z, float).reshape(len(u), -1)
+    u, z = check_record(u, z)
     failures: list[str] = []
     notes: list[str] = []
     clock = StageClock()
@@ -598,7 +599,7 @@ def _output_names(physics, n_outputs: int) -> list[str]:
 
 def analyse_model(est, u, z, physics, *, x0=None, z_init_window=0):
     """Residual report of a fitted model on one record (see :mod:`sk_offwhite.diagnose`)."""
-    z = np.asarray(z, float).reshape(len(u), -1)
+    u, z = check_record(u, z)
     z_init = z[:z_init_window] if z_init_window else None
     run = est.simulate(u, x0=x0, z_init=z_init)
     taken = set(physics.state_names) | set(physics.input_names)

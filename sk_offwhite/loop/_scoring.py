@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._validation import check_record
 from ..diagnose import simulation_metrics
 
 __all__ = ["MODEL_LABELS", "held_out_rmse", "score_models"]
@@ -49,7 +50,7 @@ def held_out_rmse(init_window: int):
 
 
 def _protocol_metrics(est, u, z, protocol: str, init_window: int) -> dict:
-    z = np.asarray(z, float).reshape(len(u), -1)
+    u, z = check_record(u, z)
     if protocol == "original":
         return simulation_metrics(z, est.simulate(u).outputs)
     z_sim = est.simulate(u, z_init=z[:init_window]).outputs
