@@ -180,6 +180,11 @@ def compile_basis(
     return _COMPILED_LIBRARIES[key]
 
 
+def release_compiled_libraries() -> None:
+    """Forget the compiled dictionaries (see :func:`compile_basis`)."""
+    _COMPILED_LIBRARIES.clear()
+
+
 # Equal library descriptions share one CompiledBasis, hence one ``evaluate`` object, so the
 # jitted rollout (whose static argument holds ``evaluate``) is compiled once for all clones
 # of an estimator (cross-validation, grid searches) instead of once per fit.

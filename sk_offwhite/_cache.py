@@ -14,7 +14,7 @@ from pathlib import Path
 
 import jax
 
-__all__ = ["DEFAULT_CACHE", "enable_compilation_cache"]
+__all__ = ["DEFAULT_CACHE", "enable_compilation_cache", "release_compiled_programs"]
 
 DEFAULT_CACHE = Path("~/.cache/sk_offwhite/xla")
 """Where :func:`enable_compilation_cache` keeps programs unless told otherwise (or
@@ -54,3 +54,19 @@ def enable_compilation_cache(directory: str | os.PathLike | None = None) -> Path
         jax.config.update(name, value)
         os.environ[name.upper()] = str(value)  # inherited by joblib and Dask workers
     return path
+
+
+def release_compiled_programs() -> None:
+    """Drop every program compiled in this process (JAX's and the package's caches).
+
+    Programs are compiled per model structure: every fit of a *new* physics object (a new
+    step function) compiles its own, and JAX keeps them for the life of the process, so a
+    study that builds thousands of physics grows in memory with each. Call this between
+    such fits to return that memory; refitting the same physics afterwards compiles again,
+    or loads from disk with :func:`enable_compilation_cache`. Fits of the same physics
+    reuse their programs and need no release.
+    """
+    from ._basis import release_compiled_libraries
+
+    release_compiled_libraries()
+    jax.clear_caches()

@@ -100,6 +100,15 @@ def _nested_params(value) -> dict:
         return {}
 
 
+def records_digest(records) -> str:
+    """Fingerprint of the records' values (and so of where they are cut)."""
+    digest = hashlib.sha1()
+    for u, z in records:
+        digest.update(np.ascontiguousarray(u, float).tobytes())
+        digest.update(np.ascontiguousarray(z, float).tobytes())
+    return digest.hexdigest()
+
+
 class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     r"""Physics model + sparse black-box correction, fitted on its multi-step simulation error.
 
@@ -430,6 +439,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
             basis, model = self._compile(physics)
             outcome = self._solve(physics, basis, model, records, reference_only)
         self._store(physics, basis, model, outcome, n_outputs)
+        self._fitted_data = records_digest(records)
         return self
 
     def _check_record_lengths(self, records) -> None:
@@ -474,10 +484,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
 
     def _reference_key(self, physics, records) -> str:
         """Fingerprint of what the physics-only stage depends on: data and structure."""
-        digest = hashlib.sha1()
-        for u, z in records:
-            digest.update(np.ascontiguousarray(u, float).tobytes())
-            digest.update(np.ascontiguousarray(z, float).tobytes())
+        digest = hashlib.sha1(records_digest(records).encode())
         settings = (
             id(physics), id(self.library), physics.parameter_values().tobytes(),
             np.asarray(physics.x0, float).tobytes(), self.horizon, self._delta_states(physics),

@@ -307,3 +307,12 @@ def test_warm_start_takes_parameters_by_name(data):
     est.set_params(physics=reordered, warm_start=True, max_iter=1).fit(u, z)
     assert est.loss_history_[0] == pytest.approx(est.cost_, rel=0.5)
     assert est.loss_history_[0] < 1e-3
+
+
+def test_certificates_refuse_data_other_than_the_fit(data):
+    from sk_offwhite.certify import identifiability
+
+    u, z = data
+    est = _fit(u, z)
+    with pytest.raises(ValueError, match="not the data the estimator was fitted on"):
+        identifiability(est, u, z + 0.01)

@@ -63,3 +63,19 @@ def test_processes_started_afterwards_share_the_cache(tmp_path):
         check=True,
     )
     assert out.stdout.strip().splitlines()[0] == str(tmp_path.resolve())
+
+
+def test_release_drops_the_compiled_programs_of_a_fit():
+    import numpy as np
+
+    from sk_offwhite import GreyBoxSparseRegressor, release_compiled_programs
+    from sk_offwhite._optim import _lm_linearise
+    from sk_offwhite.datasets import make_leaky_tank
+
+    tank = make_leaky_tank(n_samples=100, random_state=0)
+    est = GreyBoxSparseRegressor(tank.physics, max_iter=5).fit(tank.u, tank.z)
+    before = est.predict(tank.u)
+    assert _lm_linearise._cache_size() > 0
+    release_compiled_programs()
+    assert _lm_linearise._cache_size() == 0
+    np.testing.assert_array_equal(est.predict(tank.u), before)  # compiled again on demand

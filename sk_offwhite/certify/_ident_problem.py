@@ -22,7 +22,7 @@ from typing import NamedTuple
 import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
-from .._estimator import GreyBoxSparseRegressor
+from .._estimator import GreyBoxSparseRegressor, records_digest
 from .._layout import Layout
 from .._objective import CostWeights
 from .._optim import Problem
@@ -83,6 +83,13 @@ def _records(estimator, u, z, sample_index) -> list[tuple[np.ndarray, np.ndarray
         )
     if min(u_r.shape[0] for u_r, _ in records) < 2:
         raise ValueError("every record of u and z needs at least 2 samples.")
+    fitted = getattr(estimator, "_fitted_data", None)
+    if fitted is not None and records_digest(records) != fitted:
+        raise ValueError(
+            "u and z are not the data the estimator was fitted on (their values differ): "
+            "the certificates hold at the minimum of the cost on the fitted data; pass that "
+            "data, or fit on this one first."
+        )
     return records
 
 
