@@ -232,6 +232,14 @@ def test_only_sample_index_is_routable_metadata():
     assert "u" not in routing.predict.requests
 
 
+def test_the_baseline_routes_only_sample_index():
+    from sk_offwhite.baselines import DelaySINDyRegressor
+
+    with sklearn.config_context(enable_metadata_routing=True):
+        baseline = clone(DelaySINDyRegressor().set_fit_request(sample_index=True))
+        assert baseline.get_metadata_routing().fit.requests == {"sample_index": True}
+
+
 def test_clone_keeps_the_metadata_requests():
     with sklearn.config_context(enable_metadata_routing=True):
         est = GreyBoxSparseRegressor(gamma=0.5).set_fit_request(sample_index=True)

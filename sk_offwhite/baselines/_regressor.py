@@ -17,6 +17,7 @@ import numpy as np
 import pysindy as ps
 from sklearn.base import BaseEstimator, RegressorMixin, _fit_context
 from sklearn.metrics import r2_score
+from sklearn.utils import metadata_routing
 from sklearn.utils._param_validation import Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted
 
@@ -107,6 +108,11 @@ class DelaySINDyRegressor(RegressorMixin, BaseEstimator):
     n_iter_ : int
         Thresholding (STLSQ) or relaxation (SR3) iterations pysindy ran, at most ``max_iter``.
     """
+
+    # u and z are the data (X and y), not metadata to route: only sample_index is.
+    __metadata_request__fit = {"u": metadata_routing.UNUSED, "z": metadata_routing.UNUSED}
+    __metadata_request__score = {"u": metadata_routing.UNUSED, "z": metadata_routing.UNUSED}
+    __metadata_request__predict = {"u": metadata_routing.UNUSED}
 
     _parameter_constraints: dict = {
         "n_output_lags": [Interval(Integral, 1, None, closed="left")],
