@@ -527,7 +527,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
                 "the parameter values."
             )
         if not result.converged:
-            unfinished = result.message == "max_iter reached"
+            unfinished = result.message.endswith("max_iter reached")
             advice = f"increase max_iter (now {self.max_iter})" if unfinished else None
             warnings.warn(
                 f"The fit did not converge: {result.message}" + (f"; {advice}." if advice else "."),

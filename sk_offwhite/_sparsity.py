@@ -254,12 +254,16 @@ def penalty_scale(residual: np.ndarray, columns: np.ndarray, n_fit: int) -> tupl
 
 def _combine(results: list[SolverResult], free: np.ndarray) -> SolverResult:
     """One :class:`SolverResult` for consecutive stages (history joined, the last's end;
-    converged when the last two stages converged)."""
+    converged when the last two stages converged, else the message of the one that did
+    not)."""
     last = results[-1]
     history = np.concatenate([np.atleast_1d(r.history) for r in results])
     n_iter = sum(r.n_iter for r in results)
-    converged = all(r.converged for r in results[-2:])
-    return SolverResult(free, last.cost, history, n_iter, converged, last.message)
+    unfinished = [r for r in results[-2:] if not r.converged]
+    message = last.message if not unfinished else unfinished[-1].message
+    if unfinished and unfinished[-1] is not last:
+        message = f"the penalised stage before the refit: {message}"
+    return SolverResult(free, last.cost, history, n_iter, not unfinished, message)
 
 
 def _active(n_free: int, frozen: np.ndarray) -> jnp.ndarray:
