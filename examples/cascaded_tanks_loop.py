@@ -6,7 +6,8 @@ explicit physics (chosen by cross-validation on the estimation record only), ref
 the sparse corrections that show what is left, and writes a report with the errors before
 and after on both records under both scoring protocols and the CV-best model.
 
-Run: ``python examples/cascaded_tanks_loop.py [--out DIR] [--quick] [--quiet] [--no-cache]``
+Run: ``python examples/cascaded_tanks_loop.py [--out DIR] [--quick] [--quiet] [--no-cache]
+[--relax-exponents]``
 (``DIR`` defaults to ``reports/cascaded_tanks``); the stages of the loop are logged as they
 run (``--quiet`` switches that off); compiled programs are kept on disk for the next run
 (:func:`sk_offwhite.enable_compilation_cache`; ``--no-cache`` switches that off).
@@ -42,6 +43,12 @@ def main(argv=None):
     )
     parser.add_argument("--quiet", action="store_true", help="no progress messages")
     parser.add_argument(
+        "--relax-exponents",
+        action="store_true",
+        help="declare the outflow laws' exponents (1/2) relaxable, so the loop may fit them "
+        "(see the tutorial for what that changes)",
+    )
+    parser.add_argument(
         "--no-cache",
         action="store_true",
         help="do not keep compiled programs on disk (by default they are, in "
@@ -54,7 +61,7 @@ def main(argv=None):
         logging.basicConfig(format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
         logging.getLogger("sk_offwhite").setLevel(logging.INFO)
     data = load_cascaded_tanks()
-    physics = cascaded_tanks_physics(fixed={"k4": 0.05})
+    physics = cascaded_tanks_physics(fixed={"k4": 0.05}, relaxable_exponents=args.relax_exponents)
     settings = LoopSettings(
         gammas=(0.01,) if args.quick else None,
         n_folds=2 if args.quick else 3,

@@ -37,11 +37,13 @@ __all__ = [
     "OutputSaturation",
     "Overflow",
     "QuadraticDrag",
+    "RelaxedLaw",
     "Stiffness",
     "Switched",
     "SwitchedTerm",
     "augment",
     "hinge",
+    "relaxations",
     "switched",
     "switches",
     "time_step",
@@ -62,6 +64,8 @@ class Effect:
     """
 
     target = "state"
+    replaces_declared = False
+    """Whether the effect's parameters replace declared, relaxable ones of the same name."""
 
     def parameters(self) -> dict[str, Parameter]:
         """The effect's own parameters, with initial values and bounds."""
@@ -96,6 +100,43 @@ class Effect:
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in vars(self).items())
         return f"{type(self).__name__}({args})"
+
+
+class RelaxedLaw(Effect):
+    r"""A constant of a declared law freed: the fixed, relaxable parameter ``parameter``
+    (see :class:`~sk_offwhite.Parameter`) becomes a fitted one, started at its declared
+    value and kept within its bounds.
+
+    The step and output map are unchanged; only the parameter's status changes, so a model
+    with the relaxation shares the declared model's compiled programs. Torricelli's
+    outflow :math:`k\sqrt{x} = k x^{1/2}` written with a relaxable exponent ``a`` becomes
+    :math:`k x^{a}`, with :math:`a` fitted.
+    """
+
+    target = "law"
+    replaces_declared = True
+
+    def __init__(self, parameter: str, value: float, bounds=(None, None), *, name=None):
+        self.parameter, self.value = str(parameter), float(value)
+        self.bounds = tuple(bounds)
+        self.name = name or f"relax_{parameter}"
+
+    def parameters(self) -> dict[str, Parameter]:
+        return {self.parameter: Parameter(self.value, self.bounds)}
+
+    def describe(self, state_names, output_names, values=None) -> str:
+        fitted = (values or {}).get(self.parameter)
+        now = "" if fitted is None else f", fitted at {fitted:.3g}"
+        return f"the declared constant {self.parameter} freed (was {self.value:g}){now}"
+
+
+def relaxations(physics: PhysicsModel) -> list[RelaxedLaw]:
+    """One :class:`RelaxedLaw` per fixed, relaxable parameter of ``physics``."""
+    return [
+        RelaxedLaw(name, spec.value, spec.bounds)
+        for name, spec in physics.parameters.items()
+        if spec.fixed and spec.relaxable
+    ]
 
 
 class Overflow(Effect):
@@ -675,7 +716,8 @@ def _merged_parameters(physics: PhysicsModel, effects) -> dict[str, Parameter]:
     parameters = dict(physics.parameters)
     for effect in effects:
         for name, spec in effect.parameters().items():
-            if name in parameters:
+            relaxing = effect.replaces_declared and getattr(parameters.get(name), "relaxable", 0)
+            if name in parameters and not relaxing:
                 raise ValueError(
                     f"effect parameter {name!r} clashes with an existing parameter; "
                     "give the effect another name=."

@@ -41,11 +41,17 @@ class Parameter:
         Box constraint ``lower <= theta <= upper`` enforced by projection during the fit.
     fixed : bool, default=False
         Keep the parameter at ``value`` instead of fitting it.
+    relaxable : bool, default=False
+        For a fixed parameter, a constant written into a declared law (Torricelli's 1/2,
+        a laminar exponent of 1, a nominal gain) that the closed loop may free, within
+        ``bounds``, as a candidate change of that law (:class:`~sk_offwhite.RelaxedLaw`),
+        kept only if it lowers the cross-validated error.
     """
 
     value: float
     bounds: tuple[float | None, float | None] = (None, None)
     fixed: bool = False
+    relaxable: bool = False
 
     def __post_init__(self):
         lower, upper = _bound_pair(self.bounds)
@@ -55,6 +61,8 @@ class Parameter:
             raise ValueError(f"Parameter bounds must satisfy lower <= upper, got {self.bounds}.")
         if not lower <= float(self.value) <= upper:
             raise ValueError(f"Parameter value {self.value} lies outside its bounds {self.bounds}.")
+        if self.relaxable and not self.fixed:
+            raise ValueError("Parameter relaxable=True applies to a fixed parameter (fixed=True).")
 
 
 def _bound_pair(bounds) -> tuple[float, float]:

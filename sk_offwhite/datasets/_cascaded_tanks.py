@@ -138,6 +138,26 @@ def cascaded_tanks_rhs(x, u, theta):
     return jnp.stack([-theta["k1"] * root1 + inflow, theta["k2"] * root1 - theta["k3"] * root2])
 
 
+def cascaded_tanks_rhs_exponents(x, u, theta):
+    r""":func:`cascaded_tanks_rhs` with the outflow laws' exponents as parameters:
+
+    .. math::
+
+        \dot x_1 = -k_1 x_1^{a_1} + k_4 u, \qquad
+        \dot x_2 = k_2 x_1^{a_1} - k_3 x_2^{a_2},
+
+    levels floored at :math:`10^{-6}` as in :func:`safe_sqrt` (``jax.numpy``).
+    """
+    flow1 = jnp.maximum(x[0], SQRT_EPS) ** theta["a1"]
+    flow2 = jnp.maximum(x[1], SQRT_EPS) ** theta["a2"]
+    inflow = theta["k4"] * u[0]
+    return jnp.stack([-theta["k1"] * flow1 + inflow, theta["k2"] * flow1 - theta["k3"] * flow2])
+
+
+EXPONENT_BOUNDS = (0.05, 1.5)
+"""Range of a relaxed outflow exponent (1/2: turbulent orifice, Torricelli; 1: laminar)."""
+
+
 def _k_values(k_init) -> dict[str, float]:
     values = np.asarray(k_init, dtype=float)
     if values.size not in (1, 4) or values.ndim > 1 or not np.all(np.isfinite(values)):
@@ -163,6 +183,7 @@ def cascaded_tanks_physics(
     k_init: float | Sequence[float] = 0.05,
     x0: Sequence[float] | None = None,
     sampling_time: float = SAMPLING_TIME,
+    relaxable_exponents: bool = False,
 ) -> PhysicsModel:
     """Physical model of the Cascaded Tanks, eq. (21) of Donati et al. without noise.
 
@@ -191,6 +212,12 @@ def cascaded_tanks_physics(
         measured estimation record (5.205 V), as in the paper.
     sampling_time : float, default=4.0
         ``Ts`` in seconds.
+    relaxable_exponents : bool, default=False
+        Write the square roots as powers :math:`x_i^{a_i}` with exponents ``a1``, ``a2``
+        fixed at 1/2 and relaxable (:class:`~sk_offwhite.Parameter`, bounds
+        :data:`EXPONENT_BOUNDS`): the closed loop may then free them
+        (:class:`~sk_offwhite.RelaxedLaw`) if that lowers the cross-validated error
+        (:func:`cascaded_tanks_rhs_exponents`).
 
     Returns
     -------
@@ -201,11 +228,15 @@ def cascaded_tanks_physics(
     if x0 is None:
         z0 = float(_read_record("est")[0, 1])
         x0 = (z0, z0)
+    parameters = _tank_parameters(k_init, fixed)
+    if relaxable_exponents:
+        law = Parameter(0.5, EXPONENT_BOUNDS, fixed=True, relaxable=True)
+        parameters.update(a1=law, a2=law)
     return PhysicsModel.from_ode(
-        cascaded_tanks_rhs,
+        cascaded_tanks_rhs_exponents if relaxable_exponents else cascaded_tanks_rhs,
         sampling_time,
         output=1,
-        parameters=_tank_parameters(k_init, fixed),
+        parameters=parameters,
         n_states=2,
         n_inputs=1,
         method="euler",

@@ -43,14 +43,14 @@ import numpy as np
 from sklearn.base import clone
 from sklearn.model_selection import KFold, cross_val_score
 
-from .._effects import DictionaryTerm, augment, time_step
+from .._effects import DictionaryTerm, augment, relaxations, time_step
 from .._estimator import GreyBoxSparseRegressor
 from .._kinds import physical_kinds
 from .._path import GammaPath, fit_gamma_path
 from .._physics import Parameter
 from .._validation import check_record
 from ..diagnose import analyse_residuals, range_violations
-from ._candidates import promoted_terms, propose_effects, unique_by_name
+from ._candidates import Candidate, promoted_terms, propose_effects, unique_by_name
 from ._hypotheses import evidence_hypotheses, form_hypotheses
 from ._progress import StageClock, logger
 from ._scoring import MODEL_LABELS, held_out_rmse
@@ -299,8 +299,15 @@ def _handicap(effect, settings) -> float:
 
 
 def _forward(board, ranked, u, z, settings, base_rmse, failures):
-    """Forward selection: ``[(effects, warm parameters, estimation RMSE)]`` for each step."""
-    pool = [(c.effect, params, r) for r, c, params in ranked if np.isfinite(r)][: settings.beam]
+    """Forward selection: ``[(effects, warm parameters, estimation RMSE)]`` for each step.
+
+    The pool holds the ``beam`` best candidates alone and every relaxed declared law
+    (:class:`~sk_offwhite.RelaxedLaw`): a law the user marked relaxable is always tried on
+    top of the effects chosen so far, whose absence may be what made it look useless alone.
+    """
+    fitted = [(c.effect, params, r) for r, c, params in ranked if np.isfinite(r)]
+    laws = [item for item in fitted[settings.beam :] if item[0].target == "law"]
+    pool = fitted[: settings.beam] + laws
     steps, current, current_rmse = [], [], base_rmse
     if pool and pool[0][2] <= (1.0 - settings.min_gain) * base_rmse:
         steps.append(((pool[0][0],), pool[0][1], pool[0][2]))
@@ -436,8 +443,12 @@ def _candidates(physics, library, hypotheses, facts, run, u, settings):
         kinds=physical_kinds(physics),
         dt=dt,
     )
+    declared = [
+        Candidate(law, f"{law.parameter} is declared relaxable (fixed at {law.value:g})")
+        for law in relaxations(physics)
+    ]
     return unique_by_name(
-        found + promoted_terms(hypotheses, library, names, dt, settings.n_promoted)
+        found + promoted_terms(hypotheses, library, names, dt, settings.n_promoted) + declared
     )
 
 

@@ -48,26 +48,36 @@ class SeparateModels(NamedTuple):
 
 
 class Switchboard(NamedTuple):
-    """The declared physics with every candidate effect switched off, and the switches."""
+    """The declared physics with every candidate effect switched off, and the switches.
+
+    Relaxed laws (:class:`~sk_offwhite.RelaxedLaw`) need no switch: they change no
+    program, only which parameters are fitted, and are applied to the board as they are.
+    """
 
     physics: PhysicsModel
     board: tuple[Switched, ...]
+    laws: tuple = ()
 
     @classmethod
     def of(cls, physics: PhysicsModel, effects) -> Switchboard:
         """``physics`` augmented with every one of ``effects`` behind a switch (all off)."""
-        board = tuple(switched(effect) for effect in effects)
-        return cls(augment(physics, *board).with_parameters(**switches(board, ())), board)
+        board = tuple(switched(effect) for effect in effects if effect.target != "law")
+        laws = tuple(effect for effect in effects if effect.target == "law")
+        return cls(augment(physics, *board).with_parameters(**switches(board, ())), board, laws)
 
     def ordered(self, effects) -> tuple:
-        """``effects`` in the order they act on the board."""
-        chosen = {switched(effect) for effect in effects}
-        return tuple(s.effect for s in self.board if s in chosen)
+        """``effects`` in the order they act on the board (relaxed laws last)."""
+        chosen = {switched(effect) for effect in effects if effect.target != "law"}
+        laws = tuple(law for law in self.laws if law in set(effects))
+        return tuple(s.effect for s in self.board if s in chosen) + laws
 
     def model(self, on, warm: dict[str, Parameter] | None = None) -> PhysicsModel:
         """The physics with the effects ``on`` switched on, started from ``warm``."""
-        _check_known(on, [s.effect for s in self.board])
-        return self.physics.with_parameters(**switches(self.board, on), **(warm or {}))
+        _check_known(on, [s.effect for s in self.board] + list(self.laws))
+        laws = [effect for effect in on if effect.target == "law"]
+        switched_on = [effect for effect in on if effect.target != "law"]
+        physics = augment(self.physics, *laws) if laws else self.physics
+        return physics.with_parameters(**switches(self.board, switched_on), **(warm or {}))
 
 
 def effect_sets(physics: PhysicsModel, effects, shared: bool) -> Switchboard | SeparateModels:
