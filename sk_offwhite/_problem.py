@@ -244,49 +244,52 @@ def fit_records(
     sparse=None,
     reference=None,
 ) -> FitOutcome:
-    """Minimise the cost over all records: the pure core of ``fit`` (see
-    :func:`_fit_once` for the arguments).
+    """Minimise the cost over all records: the pure core of ``fit`` (the arguments are
+    those of :class:`FitSettings` and :func:`_fit_once`).
 
     A fit whose model is no model (:func:`~sk_offwhite._verdict.needs_restart`) runs once more
     from the physics-only continuation of :func:`~sk_offwhite._start.continuation_start`;
     the run with the lower fit term is kept.
     """
-    settings = (physics, basis, model, records, horizon, weights, options)
-    outcome = _fit_once(*settings, warm, sparse, reference)
+    settings = FitSettings(physics, basis, model, records, horizon, weights, options)
+    outcome = _fit_once(settings, warm, sparse, reference)
     if not needs_restart(outcome.result):
         return outcome
-    start = continuation_start(_fit_once, physics, model, records, horizon, weights, options)
+    start = continuation_start(_fit_once, settings)
     if start is None:
         return outcome
-    retry = _fit_once(*settings, {**(warm or {}), **start}, sparse, None)
+    retry = _fit_once(settings, {**(warm or {}), **start}, sparse, None)
     if not retry.result.fit < np.nan_to_num(outcome.result.fit, nan=np.inf):
         return outcome
     message = f"restarted from fits over short windows; {retry.result.message}"
     return retry._replace(result=retry.result._replace(message=message))
 
 
-def _fit_once(
-    physics,
-    basis,
-    model,
-    records,
-    horizon,
-    weights,
-    options,
-    warm=None,
-    sparse=None,
-    reference=None,
-) -> FitOutcome:
+class FitSettings(NamedTuple):
+    """What one minimisation fits: the model, the records and the solver settings."""
+
+    physics: PhysicsModel
+    basis: object
+    model: Model
+    records: list
+    horizon: int | None
+    weights: tuple
+    options: SolverOptions
+
+
+def _fit_once(settings: FitSettings, warm=None, sparse=None, reference=None) -> FitOutcome:
     """One minimisation of the cost over all records, from the initial blocks.
 
-    ``weights`` are the five scalars ``(gamma, lam, nu, shooting, beta)``; the output and
-    state scales are taken from the data (:func:`scaled_weights`). ``options`` is a
-    :class:`SolverOptions`; ``warm`` optional starting blocks (see :func:`initial_blocks`);
-    ``sparse`` the :class:`~sk_offwhite._sparsity.SparseOptions` of a fit with a dictionary
-    (the three stages of :mod:`~sk_offwhite._sparsity`); ``reference`` the
+    ``settings`` holds the arguments of :func:`fit_records`: ``weights`` are the five
+    scalars ``(gamma, lam, nu, shooting, beta)``; the output and state scales are taken
+    from the data (:func:`scaled_weights`). ``options`` is a :class:`SolverOptions`.
+    ``warm`` optional starting blocks (see :func:`initial_blocks`); ``sparse`` the
+    :class:`~sk_offwhite._sparsity.SparseOptions` of a fit with a dictionary (the three
+    stages of :mod:`~sk_offwhite._sparsity`); ``reference`` the
     :class:`~sk_offwhite._sparsity.Reference` of an earlier fit of the same data and
     structure, which skips the physics-only stage.
     """
+    physics, basis, model, records, horizon, weights, options = settings
     segments = make_segments(records, horizon)
     blocks = initial_blocks(physics, basis, model, records, segments, horizon, warm)
     free = free_blocks(physics, basis, model, segments)

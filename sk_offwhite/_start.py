@@ -37,27 +37,27 @@ def _horizons(target: int) -> Iterator[int]:
         horizon *= 4
 
 
-def continuation_start(
-    fit: Callable, physics, model, records, horizon, weights, options
-) -> dict | None:
+def continuation_start(fit: Callable, settings) -> dict | None:
     """Starting blocks (``theta`` and each record's initial state under ``"starts"``) from
     physics-only fits over lengthening windows (module docstring).
 
+    ``settings`` is the :class:`~sk_offwhite._problem.FitSettings` of the fit to start;
     ``fit`` is :func:`~sk_offwhite._problem.fit_records` without its restart, called as
-    ``fit(physics, None, model, records, horizon, weights, options, warm)`` with the
+    ``fit(settings, warm)`` with the physics alone, each window length and the
     Levenberg-Marquardt solver (the windows make it sparse, see
-    :mod:`~sk_offwhite._structured`). Returns
-    ``None`` when the requested horizon is no longer than :data:`FIRST_HORIZON`.
+    :mod:`~sk_offwhite._structured`). Returns ``None`` when the requested horizon is no
+    longer than :data:`FIRST_HORIZON`.
     """
-    plain = dataclasses.replace(model, basis=None, delta_states=(), inner_names=())
-    options = options._replace(solver="lm")
-    target = horizon or max(u.shape[0] for u, _ in records)
+    model = dataclasses.replace(settings.model, basis=None, delta_states=(), inner_names=())
+    plain = settings._replace(basis=None, model=model)
+    plain = plain._replace(options=settings.options._replace(solver="lm"))
+    target = settings.horizon or max(u.shape[0] for u, _ in settings.records)
     warm = None
     for window in _horizons(target):
-        outcome = fit(physics, None, plain, records, window, weights, options, warm)
+        outcome = fit(plain._replace(horizon=window), warm)
         starts = np.asarray(outcome.blocks["x0"])[np.asarray(outcome.segments.linked) == 0]
         warm = {"theta": outcome.blocks["theta"], "starts": list(starts)}
-        if _free_runs_within_reach(plain, warm, records):
+        if _free_runs_within_reach(model, warm, settings.records):
             break
     return warm
 
