@@ -1,6 +1,6 @@
 """Long records and hard starts with default settings: time, accuracy and peak memory.
 
-Run with ``python benchmarks/bench_long_records.py [--sizes 6000 7000 20000]``. Each case
+Run with ``python benchmarks/bench_long_records.py [--sizes 6000 7000 20000] [--loop]``. Each case
 runs in a fresh process (so that its peak resident set size is its own) and prints one
 line:
 
@@ -11,6 +11,10 @@ line:
   100 free variables Levenberg-Marquardt uses the window-coloured Jacobian
   (``sk_offwhite._structured``); before it, ``solver='auto'`` switched to Adam above 400
   free variables.
+* **the loop at scale** (``--loop``) — ``close_the_loop`` on the Coulomb drive
+  (``make_coulomb_drive``, SI units, 1 kHz) at 25 000 and 100 000 samples, without the
+  sparse-δ fits (``fit_delta=False``, 3 folds, ``max_iter=100``): time, effects added,
+  validation RMSE (``init_window``) of the declared and augmented physics, peak RSS.
 * **exploding start** — x⁺ = −0.2x + u (white input, 1 % output noise) fitted from the
   unstable guess a = 2, single shooting and ``horizon=20``: the restart from short windows
   (``sk_offwhite._start``) and the fitted a.
@@ -35,6 +39,25 @@ seconds = time.perf_counter() - start
 peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 print(f"long multiple shooting  N={n:6d}  fit {{seconds:6.1f}} s  "
       f"R2 {{est.score(d.u, d.z):.5f}}  converged {{est.converged_}}  peak RSS {{peak:5.0f}} MiB")
+"""
+
+LOOP = """
+import resource, time, warnings
+from sk_offwhite.datasets import make_coulomb_drive
+from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
+warnings.simplefilter("ignore")
+data = make_coulomb_drive(n_samples={n}, random_state=0)
+settings = LoopSettings(n_folds=3, max_iter=100, fit_delta=False, max_candidates=6)
+start = time.perf_counter()
+result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=settings)
+seconds = time.perf_counter() - start
+rows = score_models(result, {{"validation": (data.u_val, data.z_val)}})
+rmse = {{r["model"]: r["rmse"] for r in rows if r["protocol"] == "init_window"}}
+peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+print(f"loop on the Coulomb drive  N={n:6d}  {{seconds:5.0f}} s  effects "
+      f"{{[e.name for e in result.effects]}}  validation RMSE declared "
+      f"{{rmse['declared physics']:.3g}} -> augmented {{rmse['augmented physics']:.3g}}  "
+      f"failures {{len(result.failures)}}  peak RSS {{peak:5.0f}} MiB")
 """
 
 EXPLODING = """
@@ -71,9 +94,12 @@ def run(code: str) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[6000, 7000, 20000])
+    parser.add_argument("--loop", action="store_true", help="also the loop at 25k and 100k")
     args = parser.parse_args()
     for n in args.sizes:
         print(run(LONG.format(n=n)), flush=True)
+    for n in (25000, 100000) if args.loop else ():
+        print(run(LOOP.format(n=n)), flush=True)
     for n in (400, 20000):
         for horizon in (None, 20):
             print(run(EXPLODING.format(n=n, horizon=horizon)), flush=True)
