@@ -26,7 +26,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from ._objective import majoriser_constant, residual_parts
+from ._objective import ResidualParts, majoriser_constant, residual_parts
 from ._optim import (
     LINEARIZE_MAX_FREE,
     SolverResult,
@@ -87,14 +87,20 @@ def _segment_rows(offset: int, size: int, n_segments: int):
     return rows, np.arange(size) // max(size // n_segments, 1)
 
 
+_SEGMENT_MAJOR = tuple(ResidualParts._fields.index(n) for n in ("fit", "inequality", "equality"))
+_SHOOTING = ResidualParts._fields.index("shooting")
+
+
 def _touching(part_sizes, n_segments, n_states):
-    """``(row, window)`` pairs where the row depends on the window's initial state."""
+    """``(row, window)`` pairs where the row depends on the window's initial state: the
+    window's own fit and constraint rows, and the continuity rows of the links on either
+    side (link ``k`` joins windows ``k`` and ``k + 1``)."""
     offsets = np.concatenate([[0], np.cumsum(part_sizes)])
     pairs = []
-    for part in (0, 3, 4):
+    for part in _SEGMENT_MAJOR:
         pairs.append(_segment_rows(offsets[part], part_sizes[part], n_segments))
-    link_rows = offsets[1] + np.arange(part_sizes[1])
-    link = np.arange(part_sizes[1]) // n_states
+    link_rows = offsets[_SHOOTING] + np.arange(part_sizes[_SHOOTING])
+    link = np.arange(part_sizes[_SHOOTING]) // n_states
     pairs += [(link_rows, link), (link_rows, link + 1)]
     return np.concatenate([p[0] for p in pairs]), np.concatenate([p[1] for p in pairs])
 
