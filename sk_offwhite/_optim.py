@@ -8,7 +8,9 @@ keeps the best finite iterate, the loss history and the stopping rules.
 Derivatives: Levenberg-Marquardt needs the residual Jacobian :math:`J` (``R x P``); it is
 built in forward mode (``jacfwd``) when ``P <= R`` (few parameters, long records: the usual
 grey-box case) and in reverse mode otherwise. The optax loop needs only the gradient of
-:math:`\|r\|^2` and uses reverse mode.
+:math:`\|r\|^2` and uses reverse mode. With many multiple-shooting windows the Jacobian is sparse;
+:mod:`~sk_offwhite._structured` runs the same iteration (:func:`lm_loop`) on a coloured
+Jacobian and sparse normal equations.
 """
 
 from __future__ import annotations
@@ -36,6 +38,8 @@ __all__ = [
     "jacobian_columns",
     "levenberg_marquardt",
     "linearised",
+    "lm_loop",
+    "majorised_cost",
     "run_optax",
 ]
 
