@@ -21,9 +21,13 @@ from sk_offwhite.certify import (
     feasible_parameter_set,
     linearise_estimator,
     multistep_relaxation,
+    prune_by_contribution,
+    refined_mu,
     restricted_eigenvalue,
     sparse_relaxation,
+    sparsest_feasible_support,
 )
+from sk_offwhite.certify._relaxation import linear_problem
 from sk_offwhite.datasets import make_vehicle_lateral, vehicle_physics_known_registers
 
 THETA = np.array([1.0, -2.0, 0.5])
@@ -331,3 +335,149 @@ def test_vehicle_multistep_relaxation_is_pruned_to_the_true_support(vehicle_fit)
     assert relaxation.residual_norm <= mu * (1 + 1e-6)
     cert = certify_estimator(est, None, None, mu, omega_hat=relaxation.omega, linearisation=lin)
     assert cert.certified is True, cert.summary()
+
+
+# --- Diagnosis: why a certificate holds or fails; the estimate certify_estimator tests ---
+
+
+def _small_term_case(small=0.005, zero_physics=False):
+    """Two terms, one of them (phi7) so small that {phi2} alone fits within mu.
+
+    ``zero_physics``: both terms small, so the physics alone fits.
+    """
+    rng = np.random.default_rng(1)
+    xi, phi = rng.normal(size=(400, 3)), rng.normal(size=(400, 10))
+    omega = np.zeros(10)
+    omega[TRUE_SUPPORT] = [small if zero_physics else 2.0, small]
+    noise = rng.uniform(-0.01, 0.01, 400)
+    case = {"xi": xi, "phi": phi, "y": xi @ THETA + phi @ omega + noise, "omega": omega}
+    case["mu"] = 2.0 * np.linalg.norm(noise)
+    return case
+
+
+def test_a_certified_estimate_is_explained_as_certified(linear_case):
+    cert = certify_sparsity(*_args(linear_case), _least_squares_on(linear_case, TRUE_SUPPORT))
+    assert cert.certified is True
+    d = cert.diagnosis
+    assert d.cause == "certified" and d.sparser_support is None and d.exhaustive
+    assert d.sparser_residual > linear_case["mu"] >= d.residual
+    assert cert.explain().startswith("certified: tau")
+    assert "why: certified" in cert.summary()
+
+
+def test_a_sparser_feasible_support_is_named_in_the_diagnosis():
+    """Small phi7 term (contribution 0.1 < mu = 0.23): {phi2} alone fits, so the true
+    2-term support is not maximally sparse and the diagnosis says so."""
+    case = _small_term_case()
+    cert = certify_sparsity(*_args(case), _least_squares_on(case, TRUE_SUPPORT))
+    assert cert.certified is False
+    d = cert.diagnosis
+    assert d.cause == "sparser support" and d.sparser_support == ("phi2",)
+    assert d.sparser_residual <= case["mu"]
+    assert "a 1-term support {phi2} already explains the data within mu" in cert.explain()
+    assert "not maximally sparse at this noise level" in cert.explain()
+
+
+def test_the_diagnosis_names_the_empty_support_when_the_physics_alone_fits():
+    case = _small_term_case(small=0.003, zero_physics=True)
+    cert = certify_sparsity(*_args(case), _least_squares_on(case, TRUE_SUPPORT))
+    assert cert.certified is False
+    assert cert.diagnosis.sparser_support == ()
+    assert cert.explain().startswith("the physics alone (no correction)")
+
+
+def test_an_infeasible_estimate_is_diagnosed(linear_case):
+    omega = 0.9 * _least_squares_on(linear_case, TRUE_SUPPORT)
+    cert = certify_sparsity(*_args(linear_case), omega)
+    assert cert.certified is False
+    assert cert.diagnosis.cause == "infeasible"
+    assert cert.diagnosis.residual > linear_case["mu"]
+    assert "not feasible" in cert.explain()
+
+
+def test_a_conservative_verdict_is_told_apart_from_a_sparser_support(linear_case):
+    """Two nearly equal columns: no sparser support fits, yet sigma^2_2M is tiny and
+    Theorem 3 cannot certify; the diagnosis calls the test conservative."""
+    case = dict(linear_case)
+    phi = linear_case["phi"].copy()
+    phi[:, 3] = phi[:, 2] + 1e-3 * phi[:, 3]
+    case["phi"] = phi
+    case["y"] = linear_case["y"] - linear_case["phi"] @ linear_case["omega"] + phi @ linear_case[
+        "omega"]  # fmt: skip
+    cert = certify_sparsity(*_args(case), _least_squares_on(case, TRUE_SUPPORT))
+    assert cert.certified is False
+    assert cert.diagnosis.cause == "conservative" and cert.diagnosis.exhaustive
+    assert "sufficient test does not show it" in cert.explain()
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_sparsest_feasible_support_matches_brute_force(seed):
+    xi, phi, y, _, noise = _incoherent_case(seed, rows=60, features=8, bound=0.3)
+    mu = 1.05 * np.linalg.norm(noise)
+    problem = linear_problem(xi, phi, y, mu)
+    found, residual, exhaustive = sparsest_feasible_support(problem, 8)
+    sizes = [
+        len(s)
+        for k in range(9)
+        for s in itertools.combinations(range(8), k)
+        if _refit_residual(xi, phi, y, list(s)) <= mu
+    ]
+    assert exhaustive and found is not None and len(found) == min(sizes)
+    np.testing.assert_allclose(residual, _refit_residual(xi, phi, y, list(found)), rtol=1e-8)
+
+
+def test_greedy_search_is_flagged_as_not_exhaustive(linear_case):
+    problem = linear_problem(*_args(linear_case))
+    found, _, exhaustive = sparsest_feasible_support(problem, 3, max_subsets=5)
+    assert not exhaustive
+    assert sorted(found) == TRUE_SUPPORT  # greedy still finds the two strong terms
+
+
+def _linearisation_of(case, omega):
+    """A Linearisation whose Jacobians are the linear case's regressors."""
+    names = tuple(f"phi{j}" for j in range(case["phi"].shape[1]))
+    return Linearisation(
+        case["xi"], case["phi"], case["y"], THETA.copy(), omega, case["y"] * 0,
+        ("a", "b", "c"), names, 3,
+    )  # fmt: skip
+
+
+def test_certify_estimator_prunes_negligible_terms_of_the_fit(linear_case):
+    omega = _least_squares_on(linear_case, TRUE_SUPPORT)
+    omega[5] = 1e-4  # contribution 0.002, below 1 % of the largest (about 40)
+    lin = _linearisation_of(linear_case, omega)
+    cert = certify_estimator(None, None, None, linear_case["mu"], linearisation=lin)
+    np.testing.assert_array_equal(np.flatnonzero(cert.omega_hat), TRUE_SUPPORT)
+    assert cert.certified is True
+    kept = certify_estimator(None, None, None, linear_case["mu"], linearisation=lin, prune_tol=0)
+    assert kept.omega_hat[5] == 1e-4 and kept.certified is False  # phi5 is not needed
+    assert kept.diagnosis.sparser_support == ("phi2", "phi7")
+
+
+def test_certify_estimator_refined_mu_and_refit(linear_case):
+    omega = 1.02 * _least_squares_on(linear_case, TRUE_SUPPORT)
+    lin = _linearisation_of(linear_case, omega)
+    cert = certify_estimator(None, None, None, "refined", linearisation=lin)
+    problem = linear_problem(*_args(linear_case))
+    np.testing.assert_allclose(cert.mu, refined_mu(problem, omega), rtol=1e-12)
+    np.testing.assert_allclose(cert.mu, 1.01 * cert.diagnosis.residual, rtol=1e-9)
+    refit = certify_estimator(None, None, None, "refined", linearisation=lin, refit=True)
+    assert refit.mu < cert.mu  # the refit leaves the least residual on the support
+    np.testing.assert_allclose(refit.omega_hat, _least_squares_on(linear_case, TRUE_SUPPORT))
+    relax = certify_estimator(None, None, None, linear_case["mu"], linearisation=lin,
+                              estimate="relaxation", omega_hat=None)  # fmt: skip
+    np.testing.assert_array_equal(np.flatnonzero(relax.omega_hat), TRUE_SUPPORT)
+    with pytest.raises(ValueError, match="refined"):
+        certify_estimator(None, None, None, "refined", linearisation=lin, estimate="relaxation")
+    with pytest.raises(ValueError, match="estimate"):
+        certify_estimator(None, None, None, 1.0, linearisation=lin, estimate="lasso")
+
+
+def test_prune_by_contribution_is_relative_to_the_largest_term(linear_case):
+    problem = linear_problem(*_args(linear_case))
+    omega = np.zeros(10)
+    omega[[0, 1]] = [1.0, 0.009]
+    pruned = prune_by_contribution(
+        problem, omega * np.linalg.norm(problem.phi[:, 0]) / np.linalg.norm(problem.phi, axis=0)
+    )
+    assert np.count_nonzero(pruned) == 1 and pruned[0] != 0

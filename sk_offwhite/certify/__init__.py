@@ -1,4 +1,4 @@
-"""The paper's guarantees, computable: identifiability, error bounds, sparsity certificates.
+r"""The paper's guarantees, computable: identifiability, error bounds, sparsity certificates.
 
 ``identifiability`` and ``parameter_error_bound`` differentiate the fitted multi-step cost
 (Assumption 1, Lemma 1 and Theorem 1 of Donati et al.).
@@ -7,11 +7,16 @@
 problems (10), (11)-(13) and (19)-(20) on a linear-in-parameters problem with cvxpy;
 ``linearise_estimator``, ``multistep_relaxation``, ``certify_estimator`` and
 ``estimator_feasible_set`` apply them to the local linearisation of a fitted multi-step model
-(relaxation 15, Theorems 4-5).
+(relaxation 15, Theorems 4-5). ``certify_estimator`` certifies the fit's own
+:math:`\hat\omega` (pruned at 1 % of the largest term's contribution), and every
+certificate carries a ``SparsityDiagnosis`` (``explain()``): the sparsest support with fewer
+terms that fits within :math:`\mu`, searched by ``sparsest_feasible_support``.
 """
 
 from ._bounds import ParameterErrorBound, induced_norm, parameter_error_bound
 from ._certificates import SparsityCertificate, certify_sparsity, restricted_eigenvalue
+from ._diagnosis import SparsityDiagnosis, sparsest_feasible_support
+from ._estimate import prune_by_contribution, refined_mu
 from ._feasible import FeasibleSetBounds, feasible_parameter_set
 from ._identifiability import IdentifiabilityReport, UnidentifiableWarning, identifiability
 from ._linearise import (
@@ -30,6 +35,7 @@ __all__ = [
     "ParameterErrorBound",
     "SparseRelaxation",
     "SparsityCertificate",
+    "SparsityDiagnosis",
     "UnidentifiableWarning",
     "certify_estimator",
     "certify_sparsity",
@@ -40,6 +46,9 @@ __all__ = [
     "linearise_estimator",
     "multistep_relaxation",
     "parameter_error_bound",
+    "prune_by_contribution",
+    "refined_mu",
     "restricted_eigenvalue",
     "sparse_relaxation",
+    "sparsest_feasible_support",
 ]

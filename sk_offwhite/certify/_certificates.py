@@ -68,6 +68,8 @@ from dataclasses import dataclass, field, replace
 import cvxpy as cp
 import numpy as np
 
+from . import _diagnosis
+from ._diagnosis import SparsityDiagnosis
 from ._relaxation import (
     LinearProblem,
     feasible_region,
@@ -265,6 +267,11 @@ class SparsityCertificate:
         :math:`d_j = \|\varphi_j\|_2` when the test ran on unit-norm columns; then
         ``omega_hat``, ``omega_v``, ``eta``, ``threshold``, ``margin`` and
         ``theorem2_bound`` are in the units of :math:`\omega' = D\omega`.
+    diagnosis : SparsityDiagnosis or None
+        Why the verdict is what it is: the residual of :math:`\hat\omega` against
+        :math:`\mu`, :math:`\|\Upsilon_0\Phi\hat\omega\|_2`, the sparsest feasible
+        support with fewer than :math:`M` terms (if any) and :math:`\tau/\eta`
+        (``None`` with ``diagnose=False``); :meth:`explain` states it in a sentence.
     """
 
     certified: bool | None
@@ -285,6 +292,12 @@ class SparsityCertificate:
     mu: float
     feature_names: tuple[str, ...]
     column_scales: np.ndarray | None = field(default=None)
+    diagnosis: SparsityDiagnosis | None = field(default=None)
+
+    def explain(self) -> str:
+        """One sentence: why certified, or why not (a sparser feasible support, an
+        infeasible estimate, or a conservative test)."""
+        return self.reason if self.diagnosis is None else self.diagnosis.sentence()
 
     @property
     def verdict(self) -> str:
@@ -305,6 +318,7 @@ class SparsityCertificate:
                 f"margin = {self.margin:.6g}",
                 f"  sigma^2_2M = {self.sigma2:.6g} ({kind}), kappa_bar = {self.kappa_bar}, "
                 f"(11d) active: {self.constraint_active}, mu = {self.mu:.6g}",
+                f"  why: {self.explain()}",
             ]
         )
 
@@ -345,14 +359,27 @@ def certify_problem(
     max_subsets: int = MAX_SUBSETS,
     active_rtol: float = 1e-3,
     normalize_columns: bool = False,
+    diagnose: bool = True,
 ) -> SparsityCertificate:
     """:func:`certify_sparsity` on an already validated :class:`LinearProblem`."""
     omega_hat = _check_omega_hat(omega_hat, problem.n_features)
+    options = dict(max_subsets=max_subsets, active_rtol=active_rtol)
     if normalize_columns:
         scaled, scales = unit_norm_problem(problem)
-        options = dict(max_subsets=max_subsets, active_rtol=active_rtol)
-        certificate = certify_problem(scaled, omega_hat * scales, **options)
+        certificate = certify_problem(scaled, omega_hat * scales, diagnose=diagnose, **options)
         return replace(certificate, column_scales=scales)
+    certificate = _test_problem(problem, omega_hat, **options)
+    if not diagnose:
+        return certificate
+    return replace(
+        certificate, diagnosis=_diagnosis.diagnose(problem, certificate, max_subsets=max_subsets)
+    )
+
+
+def _test_problem(
+    problem: LinearProblem, omega_hat: np.ndarray, *, max_subsets: int, active_rtol: float
+) -> SparsityCertificate:
+    """Theorem 3's test (11)-(13) on ``problem`` for a validated ``omega_hat``."""
     support = omega_hat != 0
     eta = float(np.min(np.abs(omega_hat[support])))
     geometry = _geometry(problem, int(support.sum()), max_subsets)
@@ -393,6 +420,7 @@ def certify_sparsity(
     max_subsets: int = MAX_SUBSETS,
     active_rtol: float = 1e-3,
     normalize_columns: bool = False,
+    diagnose: bool = True,
     theta_names=None,
     feature_names=None,
 ) -> SparsityCertificate:
@@ -443,5 +471,5 @@ def certify_sparsity(
     problem = linear_problem(
         phi_theta, phi, y, mu, theta_names=theta_names, feature_names=feature_names
     )
-    options = dict(max_subsets=max_subsets, active_rtol=active_rtol)
+    options = dict(max_subsets=max_subsets, active_rtol=active_rtol, diagnose=diagnose)
     return certify_problem(problem, omega_hat, normalize_columns=normalize_columns, **options)

@@ -27,7 +27,7 @@ and FPS/SFPS hold *locally*, as far as the linearisation does.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import jax
 import jax.numpy as jnp
@@ -37,6 +37,7 @@ from sklearn.utils.validation import check_is_fitted
 from .._rollout import simulate
 from .._validation import check_pair
 from ._certificates import SparsityCertificate, certify_problem
+from ._estimate import refined_mu, select_estimate
 from ._feasible import FeasibleSetBounds, feasible_set_bounds
 from ._relaxation import LinearProblem, SparseRelaxation, linear_problem, solve_relaxation
 
@@ -269,12 +270,26 @@ def multistep_relaxation(
 
 
 def certify_estimator(
-    estimator, u, z, mu: float, *, omega_hat=None, linearisation=None, **options
+    estimator,
+    u,
+    z,
+    mu: float | str,
+    *,
+    omega_hat=None,
+    estimate: str = "fit",
+    prune_tol: float = 0.01,
+    refit: bool = False,
+    mu_factor: float = 1.01,
+    linearisation=None,
+    **options,
 ) -> SparsityCertificate:
     r"""Theorem 5: is the fitted correction locally maximally sparse?
 
     Runs :func:`~sk_offwhite.certify.certify_sparsity` on the local linearisation
-    (:math:`\Phi_\theta = J_\theta`, :math:`\Phi = J_\omega`, :math:`y = \tilde z_\ell`).
+    (:math:`\Phi_\theta = J_\theta`, :math:`\Phi = J_\omega`, :math:`y = \tilde z_\ell`)
+    for the multi-step fit's own :math:`\hat\omega` (Section 5.1; Remark 1 allows any
+    estimate), with its terms of contribution :math:`\|J_{\omega,j}\hat\omega_j\|_2`
+    below ``prune_tol`` of the largest set to zero.
 
     Parameters
     ----------
@@ -282,26 +297,52 @@ def certify_estimator(
         Fitted, with a dictionary.
     u, z : array-like
         The record (see :func:`linearise_estimator`).
-    mu : float
+    mu : float or ``'refined'``
         Bound on the 2-norm of the output noise over the record (see
-        :func:`multistep_relaxation`).
+        :func:`multistep_relaxation`). ``'refined'``: ``mu_factor`` times the residual the
+        estimate leaves on the linearisation, :math:`\min_\theta \|\tilde z_\ell -
+        J_\theta\theta - J_\omega\hat\omega\|_2` (the smallest bound under which it is
+        feasible).
     omega_hat : array-like, optional
-        The estimate to certify, one entry per trainable :math:`\Omega` entry (default: the
-        fit's thresholded ``coef_``; pass ``multistep_relaxation(...).omega`` to certify
-        the solution of (15)).
+        An explicit estimate, one entry per trainable :math:`\Omega` entry, certified as
+        given (no pruning, no refit): e.g. ``multistep_relaxation(...).omega``.
+    estimate : {'fit', 'relaxation'}, default='fit'
+        Without ``omega_hat``: ``'fit'`` certifies the fit's ``coef_`` (the default, as
+        before); ``'relaxation'`` the pruned solution of (15) at ``mu``.
+    prune_tol : float, default=0.01
+        Terms whose contribution is below this fraction of the largest are zeroed
+        (``0`` keeps the estimate's support as it is).
+    refit : bool, default=False
+        Certify the least-squares refit on the support instead of the estimate itself.
+    mu_factor : float, default=1.01
+        Safety factor of ``mu='refined'``.
     linearisation : Linearisation, optional
         Reuse a linearisation computed before.
     **options
-        ``max_subsets``, ``active_rtol``, ``normalize_columns`` of
+        ``max_subsets``, ``active_rtol``, ``normalize_columns``, ``diagnose`` of
         :func:`~sk_offwhite.certify.certify_sparsity`.
 
     Returns
     -------
     SparsityCertificate
+        ``certificate.mu`` is the bound used; ``certificate.explain()`` says why the
+        verdict is what it is.
     """
     lin = _linearisation(estimator, u, z, linearisation)
-    omega = lin.omega_hat if omega_hat is None else omega_hat
-    return certify_problem(lin.problem(mu), omega, **options)
+    refined = isinstance(mu, str)
+    if refined and (mu != "refined" or (omega_hat is None and estimate == "relaxation")):
+        raise ValueError(
+            f"mu must be a positive float (or 'refined' with estimate='fit'), got {mu!r}."
+        )
+    problem = lin.problem(1.0 if refined else mu)
+    omega = omega_hat
+    if omega is None:
+        choice = dict(estimate=estimate, prune_tol=prune_tol, refit=refit)
+        normalize = bool(options.get("normalize_columns", False))
+        omega = select_estimate(problem, lin.omega_hat, normalize_columns=normalize, **choice)
+    if refined:
+        problem = replace(problem, mu=refined_mu(problem, omega, mu_factor))
+    return certify_problem(problem, omega, **options)
 
 
 def estimator_feasible_set(

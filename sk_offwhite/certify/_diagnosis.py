@@ -1,0 +1,296 @@
+r"""Why a sparsity certificate holds or fails: the sparsest feasible support, searched.
+
+Theorem 3 (and its local form, Theorem 5) is a *sufficient* test: "cannot certify" means
+either that the support :math:`S` of :math:`\hat\omega` is not the maximally sparse one
+(Definition 3: a support with fewer terms also satisfies the data constraint) or that the
+test is too conservative to tell. The two are told apart by looking for a sparser support
+directly. On the problem :math:`y = \Phi_\theta\theta + \Phi\omega + \eta`,
+:math:`\|\eta\|_2 \le \mu`, with :math:`\Upsilon_0 = I - \Phi_\theta\Phi_\theta^\dagger`,
+the best residual of a support :math:`K` is
+
+.. math::
+
+    r(K) = \min_{\theta, \omega_K} \|y - \Phi_\theta\theta - \Phi_K\omega_K\|_2
+         = \min_{\omega_K} \|\Upsilon_0 y - \Upsilon_0\Phi_K\omega_K\|_2 ,
+
+and :math:`K` is feasible when :math:`r(K) \le \mu`. :func:`sparsest_feasible_support`
+tries every support of size :math:`k = 0, 1, \dots, M - 1` (exhaustively while
+:math:`\binom{m'}{k} \le` ``max_subsets``, else by greedy forward selection, which can
+miss one) and returns the first feasible one. The residuals are computed exactly on a
+thin QR factorisation of :math:`[\Upsilon_0\Phi\ \ \Upsilon_0 y]`, so each support costs
+an :math:`(m'+1) \times k` least-squares problem whatever :math:`T`.
+
+The diagnosis also reports :math:`\|\Upsilon_0\Phi\hat\omega\|_2`, the part of the
+estimated correction the physics cannot absorb (an estimate of
+:math:`\|\Upsilon J_\omega\bar\omega\|_2` in Section 5.1): when it is of the order of
+:math:`\mu`, the noise can hide the correction, or most of it, and a sparser support fits.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._relaxation import LinearProblem
+
+__all__ = ["SparsityDiagnosis", "diagnose", "sparsest_feasible_support"]
+
+
+def _projector(phi_theta: np.ndarray, matrix: np.ndarray) -> np.ndarray:
+    r""":math:`(I - \Phi_\theta\Phi_\theta^\dagger)` ``matrix`` (orthonormal basis by SVD)."""
+    if phi_theta.shape[1] == 0:
+        return matrix.copy()
+    u, s, _ = np.linalg.svd(phi_theta, full_matrices=False)
+    rank = int(np.sum(s > s[0] * max(phi_theta.shape) * np.finfo(float).eps)) if s.size else 0
+    return matrix - u[:, :rank] @ (u[:, :rank].T @ matrix)
+
+
+@dataclass(frozen=True)
+class _Compressed:
+    """:math:`R` of the thin QR of :math:`[\\Upsilon_0\\Phi\\ \\Upsilon_0 y]`."""
+
+    columns: np.ndarray
+    target: np.ndarray
+
+
+def _compress(problem: LinearProblem) -> _Compressed:
+    stacked = _projector(problem.phi_theta, np.column_stack([problem.phi, problem.y]))
+    r = np.linalg.qr(stacked, mode="r")
+    return _Compressed(r[:, :-1], r[:, -1])
+
+
+def _support_residual(compressed: _Compressed, support) -> float:
+    r""":math:`r(K)` of the support ``support`` (a sequence of column indices)."""
+    if len(support) == 0:
+        return float(np.linalg.norm(compressed.target))
+    columns = compressed.columns[:, list(support)]
+    coef = np.linalg.lstsq(columns, compressed.target, rcond=None)[0]
+    return float(np.linalg.norm(compressed.target - columns @ coef))
+
+
+def _best_of_size(compressed: _Compressed, candidates, k: int, max_subsets: int):
+    """Smallest-residual support of size ``k``: exhaustive, or greedy past ``max_subsets``."""
+    if math.comb(len(candidates), k) <= max_subsets:
+        subsets = itertools.combinations(candidates, k)
+        return min(((s, _support_residual(compressed, s)) for s in subsets), key=lambda p: p[1])
+    return _greedy(compressed, candidates, k), None
+
+
+def _greedy(compressed: _Compressed, candidates, k: int) -> tuple[int, ...]:
+    """Forward selection: add, ``k`` times, the column that lowers the residual most."""
+    chosen: tuple[int, ...] = ()
+    for _ in range(k):
+        rest = [j for j in candidates if j not in chosen]
+        chosen = min((chosen + (j,) for j in rest), key=lambda s: _support_residual(compressed, s))
+    return chosen
+
+
+def sparsest_feasible_support(
+    problem: LinearProblem,
+    max_size: int,
+    *,
+    exclude=None,
+    max_subsets: int = 20_000,
+) -> tuple[tuple[int, ...] | None, float, bool]:
+    r"""The smallest support :math:`K`, :math:`|K| \le` ``max_size``, with :math:`r(K) \le \mu`.
+
+    Parameters
+    ----------
+    problem : LinearProblem
+    max_size : int
+        Largest support size tried (``M - 1`` to test the maximal sparsity of an
+        ``M``-term estimate).
+    exclude : array-like of bool, optional
+        Columns never used (those confounded with the physics add nothing to :math:`\theta`).
+    max_subsets : int, default=20000
+        Sizes with more supports than this are searched greedily.
+
+    Returns
+    -------
+    support : tuple of int or None
+        Column indices of the first feasible support found (smallest size, then smallest
+        residual), or ``None``.
+    residual : float
+        Its :math:`r(K)`; when none is feasible, the smallest residual found at
+        ``max_size`` (``inf`` when ``max_size < 0``).
+    exhaustive : bool
+        ``True`` when every size was enumerated, so ``None`` proves that no such support
+        exists.
+    """
+    compressed = _compress(problem)
+    skip = np.zeros(problem.n_features, bool) if exclude is None else np.asarray(exclude, bool)
+    candidates = [int(j) for j in np.flatnonzero(~skip)]
+    best, exhaustive = (None, np.inf), True
+    for k in range(min(max_size, len(candidates)) + 1):
+        support, residual = _best_of_size(compressed, candidates, k, max_subsets)
+        if residual is None:
+            exhaustive, residual = False, _support_residual(compressed, support)
+        if residual <= problem.mu:
+            return tuple(support), residual, exhaustive
+        best = (None, residual)
+    return best[0], best[1], exhaustive
+
+
+@dataclass(frozen=True)
+class SparsityDiagnosis:
+    r"""The data behind a certificate's verdict, and one sentence that states it.
+
+    Attributes
+    ----------
+    support_size : int
+        :math:`M = |\mathrm{supp}\,\hat\omega|`.
+    mu : float
+        The noise bound used.
+    residual : float
+        :math:`\min_\theta \|y - \Phi_\theta\theta - \Phi\hat\omega\|_2`, the residual
+        :math:`\hat\omega` leaves (feasible when :math:`\le \mu`).
+    physics_residual : float
+        :math:`\|\Upsilon_0 y\|_2`, the residual with no correction at all.
+    unexplained : float
+        :math:`\|\Upsilon_0\Phi\hat\omega\|_2`, the part of the estimated correction the
+        physics cannot absorb (estimate of :math:`\|\Upsilon J_\omega\bar\omega\|_2`).
+    sparser_support : tuple of str or None
+        A support with fewer than :math:`M` terms that fits within :math:`\mu` (the
+        smallest found), or ``None``.
+    sparser_residual : float
+        Its residual, or (when ``None``) the best residual with :math:`M - 1` terms.
+    exhaustive : bool
+        Whether the search enumerated every support (``None`` is then a proof).
+    sigma2, tau, eta : float
+        :math:`\sigma^2_{2M}`, :math:`\tau` and :math:`\eta(\hat\omega)` of the certificate.
+    certified : bool or None
+        The certificate's verdict.
+    reason : str
+        The certificate's reason.
+    """
+
+    support_size: int
+    mu: float
+    residual: float
+    physics_residual: float
+    unexplained: float
+    sparser_support: tuple[str, ...] | None
+    sparser_residual: float
+    exhaustive: bool
+    sigma2: float
+    tau: float
+    eta: float
+    certified: bool | None
+    reason: str
+
+    @property
+    def sparser_exists(self) -> bool:
+        """A support with fewer terms than :math:`\\hat\\omega` fits within :math:`\\mu`."""
+        return self.sparser_support is not None
+
+    @property
+    def cause(self) -> str:
+        """``'certified'``, ``'infeasible'``, ``'sparser support'``, ``'conservative'``
+        or ``'not computed'``."""
+        if self.certified is None:
+            return "not computed"
+        if self.residual > self.mu * (1 + 1e-3):
+            return "infeasible"
+        if self.sparser_exists:
+            return "sparser support"
+        return "certified" if self.certified else "conservative"
+
+    def sentence(self) -> str:
+        """Why the verdict is what it is, in one sentence with the numbers."""
+        return _SENTENCES[self.cause](self)
+
+
+def _set(names) -> str:
+    return "{" + ", ".join(names) + "}"
+
+
+def _sparser(d: SparsityDiagnosis) -> str:
+    k = len(d.sparser_support)
+    head = (
+        "the physics alone (no correction) already explains the data within mu"
+        if k == 0
+        else f"a {k}-term support {_set(d.sparser_support)} already explains the data within mu"
+    )
+    return (
+        f"{head} (residual {d.sparser_residual:.3g} <= mu = {d.mu:.3g}), so the {d.support_size}"
+        f"-term support of omega_hat is not maximally sparse at this noise level; the part "
+        f"of the estimated correction the physics cannot absorb, ||Upsilon Phi omega_hat|| "
+        f"= {d.unexplained:.3g}, is of the order of mu."
+    )
+
+
+def _conservative(d: SparsityDiagnosis) -> str:
+    search = "exhaustive search" if d.exhaustive else "greedy search (not a proof)"
+    return (
+        f"no support with fewer than {d.support_size} terms fits within mu = {d.mu:.3g} "
+        f"({search}; best residual {d.sparser_residual:.3g}), so omega_hat may well be "
+        f"maximally sparse, but the sufficient test does not show it: {d.reason}; "
+        f"tau/eta = {d.tau / d.eta:.3g}, tau grows with mu (the error at omega^v has norm "
+        f"mu, against {d.residual:.3g} at omega_hat) over sigma^2_2M = {d.sigma2:.3g}."
+    )
+
+
+def _certified(d: SparsityDiagnosis) -> str:
+    return (
+        f"certified: tau = {d.tau:.3g} < eta = {d.eta:.3g} (tau/eta = {d.tau / d.eta:.3g}, "
+        f"sigma^2_2M = {d.sigma2:.3g}); no support with fewer than {d.support_size} terms "
+        f"fits within mu = {d.mu:.3g} (best residual {d.sparser_residual:.3g})."
+    )
+
+
+def _infeasible(d: SparsityDiagnosis) -> str:
+    return (
+        f"omega_hat is not feasible: it leaves a residual {d.residual:.3g} > mu = {d.mu:.3g}; "
+        f"a refined mu = 1.01 x {d.residual:.3g} makes it feasible."
+    )
+
+
+def _not_computed(d: SparsityDiagnosis) -> str:
+    return f"no verdict: {d.reason}."
+
+
+_SENTENCES = {
+    "certified": _certified,
+    "sparser support": _sparser,
+    "conservative": _conservative,
+    "infeasible": _infeasible,
+    "not computed": _not_computed,
+}
+
+
+def diagnose(
+    problem: LinearProblem, certificate, *, max_subsets: int = 20_000
+) -> SparsityDiagnosis:
+    r"""The :class:`SparsityDiagnosis` of a :class:`~sk_offwhite.certify.SparsityCertificate`.
+
+    Parameters
+    ----------
+    problem : LinearProblem
+        The problem the certificate was computed on (same units as its ``omega_hat``).
+    certificate : SparsityCertificate
+    max_subsets : int, default=20000
+        See :func:`sparsest_feasible_support`.
+
+    Returns
+    -------
+    SparsityDiagnosis
+    """
+    omega = certificate.omega_hat
+    size = int(np.count_nonzero(omega))
+    found, best, exhaustive = sparsest_feasible_support(
+        problem, size - 1, exclude=certificate.confounded, max_subsets=max_subsets
+    )
+    names = None if found is None else tuple(problem.feature_names[j] for j in found)
+    projected = _projector(
+        problem.phi_theta,
+        np.column_stack([problem.y - problem.phi @ omega, problem.phi @ omega, problem.y]),
+    )
+    residual, unexplained, physics = np.linalg.norm(projected, axis=0)
+    return SparsityDiagnosis(
+        size, problem.mu, float(residual), float(physics), float(unexplained), names,
+        float(best), exhaustive, certificate.sigma2, certificate.threshold, certificate.eta,
+        certificate.certified, certificate.reason,
+    )  # fmt: skip
