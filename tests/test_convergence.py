@@ -96,3 +96,24 @@ def test_an_unfinished_first_order_fit_warns(first_order):
     with pytest.warns(ConvergenceWarning, match="increase max_iter"):
         est.set_params(max_iter=400).fit(u, z)
     assert not est.converged_
+
+
+def test_a_run_creeping_along_a_flat_direction_says_so():
+    """With k1, k2, k4 and x1(0) all free the tanks' output does not determine their scale:
+    LM walks along that direction until max_iter (the cost falling by ~1e-6 per step)."""
+    from sk_offwhite.datasets import make_cascaded_tanks
+
+    tanks = make_cascaded_tanks(n_samples=1000, overflow=False, saturation=False, random_state=0)
+    est = GreyBoxSparseRegressor(tanks.physics, horizon=32, max_iter=80)
+    with pytest.warns(ConvergenceWarning, match="direction the data do not determine") as seen:
+        est.fit(tanks.u, tanks.z)
+    assert "increase max_iter" not in str(seen[-1].message)
+    assert est.score(tanks.u, tanks.z) > 0.999
+
+
+def test_creep_is_told_from_progress():
+    from sk_offwhite._optim import _creep
+
+    assert _creep(list(np.linspace(2.0, 1.0, 30))) == ""  # still descending
+    assert _creep([1.0] * 10) == ""  # too short to tell
+    assert "direction the data do not determine" in _creep(list(1.0 + 1e-7 * np.arange(30)[::-1]))
