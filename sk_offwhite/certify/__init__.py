@@ -11,6 +11,8 @@ problems (10), (11)-(13) and (19)-(20) on a linear-in-parameters problem with cv
 :math:`\hat\omega` (pruned at 1 % of the largest term's contribution), and every
 certificate carries a ``SparsityDiagnosis`` (``explain()``): the sparsest support with fewer
 terms that fits within :math:`\mu`, searched by ``sparsest_feasible_support``.
+``hull_errors``, ``principal_components`` and ``hull_polygon`` give the paper's Fig. 2
+statistic: FPS and SFPS as convex hulls of Monte Carlo estimates.
 """
 
 from ._bounds import ParameterErrorBound, induced_norm, parameter_error_bound
@@ -18,6 +20,7 @@ from ._certificates import SparsityCertificate, certify_sparsity, restricted_eig
 from ._diagnosis import SparsityDiagnosis, sparsest_feasible_support
 from ._estimate import prune_by_contribution, refined_mu
 from ._feasible import FeasibleSetBounds, feasible_parameter_set
+from ._hulls import hull_errors, hull_polygon, principal_components
 from ._identifiability import IdentifiabilityReport, UnidentifiableWarning, identifiability
 from ._linearise import (
     Linearisation,
@@ -41,11 +44,14 @@ __all__ = [
     "certify_sparsity",
     "estimator_feasible_set",
     "feasible_parameter_set",
+    "hull_errors",
+    "hull_polygon",
     "identifiability",
     "induced_norm",
     "linearise_estimator",
     "multistep_relaxation",
     "parameter_error_bound",
+    "principal_components",
     "prune_by_contribution",
     "refined_mu",
     "restricted_eigenvalue",

@@ -25,6 +25,16 @@ with support :math:`S`, :math:`M = |S|` and :math:`\eta(\hat\omega) = \min_{i \i
    \eta(\hat\omega)`, :math:`\hat\omega` is maximally sparse and has the support of the
    sparsest feasible :math:`\bar\omega` (margin :math:`\eta(\hat\omega) - \tau`).
 
+**Sparsity level.** Theorem 3's proof applies Theorem 2 to :math:`\bar\omega` and
+:math:`\omega^v`; their difference has at most :math:`\|\omega^v\|_0 + \|\bar\omega\|_0
+\le \|\omega^v\|_0 + M` non-zeros (:math:`\hat\omega` is feasible, so
+:math:`\|\bar\omega\|_0 \le M`), while :math:`\omega^v` may have more than :math:`M`
+(the vehicle's has 6-10 against :math:`M = 3`). By default (``level='vertex'``)
+:math:`\sigma^2_n` and :math:`\|e\|_{(Q,n)}` in :math:`\tau` use
+:math:`n = \min(\|\omega^v\|_0 + M, m')`; ``level='2M'`` gives the paper's literal
+:math:`2M`, valid when :math:`\|\omega^v\|_0 \le M`. Below, :math:`2M` stands for the
+level used.
+
 **Interpretation.** The paper writes :math:`\sigma^2_{2M}(\Upsilon_0)` and
 :math:`\|\cdot\|_{(\Upsilon_0, n)}`; the matrix whose columns enter is the projected
 dictionary :math:`\Upsilon_0\Phi` (the proof applies Gribonval et al. to
@@ -194,12 +204,37 @@ class _Geometry:
     n_sparse: int
 
 
-def _geometry(problem: LinearProblem, m_support: int, max_subsets: int) -> _Geometry:
+def _geometry(problem: LinearProblem, level: int, max_subsets: int) -> _Geometry:
+    """Projected dictionary, kept columns and :math:`\\sigma^2_n` at ``n = min(level, m')``."""
     projected = project_out(problem.phi_theta, problem.phi)
     kept = ~confounded_columns(problem.phi, projected)
-    n_sparse = min(2 * m_support, int(kept.sum()))
-    sigma2, exact = restricted_eigenvalue(projected[:, kept], n_sparse, max_subsets=max_subsets)
-    return _Geometry(projected, kept, sigma2, exact, n_sparse)
+    return _at_level(_Geometry(projected, kept, np.nan, True, 0), level, max_subsets)
+
+
+def _at_level(geometry: _Geometry, level: int, max_subsets: int) -> _Geometry:
+    """``geometry`` with :math:`\\sigma^2_n`, ``n = min(level, m')`` (``m'`` kept columns)."""
+    n_sparse = min(int(level), int(geometry.kept.sum()))
+    q = geometry.projected[:, geometry.kept]
+    sigma2, exact = restricted_eigenvalue(q, n_sparse, max_subsets=max_subsets)
+    return replace(geometry, sigma2=sigma2, sigma2_exact=exact, n_sparse=n_sparse)
+
+
+def vertex_support_size(problem: LinearProblem, omega_v: np.ndarray, kept, rtol: float = 1e-6):
+    r""":math:`\|\omega^v\|_0` on the kept columns: terms whose contribution
+    :math:`|\omega^v_j|\,\|\varphi_j\|_2` exceeds ``rtol`` times the largest (an
+    interior-point :math:`\omega^v` is never exactly sparse)."""
+    size = np.abs(omega_v) * np.linalg.norm(problem.phi, axis=0)
+    return int(np.count_nonzero((size > rtol * np.max(size, initial=0.0)) & kept))
+
+
+def sparsity_level(m_support: int, vertex_size: int, rule: str) -> int:
+    r"""The sparsity level :math:`n` of :math:`\sigma^2_n` and :math:`\|e\|_{(Q,n)}` in
+    :math:`\tau`: ``'vertex'`` :math:`\|\omega^v\|_0 + M`, ``'2M'`` the paper's :math:`2M`."""
+    if rule == "vertex":
+        return int(vertex_size) + int(m_support)
+    if rule == "2M":
+        return 2 * int(m_support)
+    raise ValueError(f"level must be 'vertex' or '2M', got {rule!r}.")
 
 
 def support_threshold(problem: LinearProblem, geometry: _Geometry, omega: np.ndarray) -> float:
@@ -250,7 +285,9 @@ class SparsityCertificate:
     kappa_bar : int or None
         :math:`\bar\kappa_e = M - |\lambda|` of (12).
     sigma2 : float
-        :math:`\sigma^2_{2M}` of the projected dictionary (confounded columns removed).
+        :math:`\sigma^2_n` of the projected dictionary (confounded columns removed) at the
+        level :math:`n` = ``sparsity_level`` used by :math:`\tau` (:math:`2M` when
+        :math:`\omega^v` is not available).
     sigma2_exact : bool
         ``True``: exact by enumeration; ``False``: a valid lower bound.
     constraint_active : bool or None
@@ -267,6 +304,13 @@ class SparsityCertificate:
         :math:`d_j = \|\varphi_j\|_2` when the test ran on unit-norm columns; then
         ``omega_hat``, ``omega_v``, ``eta``, ``threshold``, ``margin`` and
         ``theorem2_bound`` are in the units of :math:`\omega' = D\omega`.
+    sparsity_level : int
+        :math:`n` of :math:`\sigma^2_n` and :math:`\|e\|_{(Q,n)}` in :math:`\tau`:
+        :math:`\min(\|\omega^v\|_0 + M, m')` by default (``level='vertex'``), or
+        :math:`\min(2M, m')`.
+    vertex_size : int or None
+        :math:`\|\omega^v\|_0` (kept columns; terms above :math:`10^{-6}` of the largest
+        contribution :math:`|\omega^v_j|\,\|\varphi_j\|_2`).
     diagnosis : SparsityDiagnosis or None
         Why the verdict is what it is: the residual of :math:`\hat\omega` against
         :math:`\mu`, :math:`\|\Upsilon_0\Phi\hat\omega\|_2`, the sparsest feasible
@@ -293,6 +337,8 @@ class SparsityCertificate:
     feature_names: tuple[str, ...]
     column_scales: np.ndarray | None = field(default=None)
     diagnosis: SparsityDiagnosis | None = field(default=None)
+    sparsity_level: int = field(default=0)
+    vertex_size: int | None = field(default=None)
 
     def explain(self) -> str:
         """One sentence: why certified, or why not (a sparser feasible support, an
@@ -316,7 +362,8 @@ class SparsityCertificate:
                 f"  support (M = {len(support)}): {', '.join(support)}",
                 f"  eta(omega_hat) = {self.eta:.6g}, threshold tau = {self.threshold:.6g}, "
                 f"margin = {self.margin:.6g}",
-                f"  sigma^2_2M = {self.sigma2:.6g} ({kind}), kappa_bar = {self.kappa_bar}, "
+                f"  sigma^2_n = {self.sigma2:.6g} (n = {self.sparsity_level}, {kind}), "
+                f"kappa_bar = {self.kappa_bar}, "
                 f"(11d) active: {self.constraint_active}, mu = {self.mu:.6g}",
                 f"  why: {self.explain()}",
             ]
@@ -344,7 +391,7 @@ def _verdict(threshold, eta, checks: dict) -> tuple[bool, str]:
     if not checks["active"]:
         return False, "constraint (11d) is not active at omega^v (Theorem 3 hypothesis)"
     if not np.isfinite(threshold):
-        return False, "sigma^2_2M is 0: some 2M projected columns are linearly dependent"
+        return False, "sigma^2_n is 0: some n projected columns are linearly dependent"
     if not checks["lambda_in_support"]:
         return False, "|omega^v_i| > tau off supp(omega_hat): a term outside the support is needed"
     if threshold < eta:
@@ -360,10 +407,12 @@ def certify_problem(
     active_rtol: float = 1e-3,
     normalize_columns: bool = False,
     diagnose: bool = True,
+    level: str = "vertex",
 ) -> SparsityCertificate:
     """:func:`certify_sparsity` on an already validated :class:`LinearProblem`."""
     omega_hat = _check_omega_hat(omega_hat, problem.n_features)
-    options = dict(max_subsets=max_subsets, active_rtol=active_rtol)
+    sparsity_level(1, 0, level)  # validates ``level`` before any solve
+    options = dict(max_subsets=max_subsets, active_rtol=active_rtol, level=level)
     if normalize_columns:
         scaled, scales = unit_norm_problem(problem)
         certificate = certify_problem(scaled, omega_hat * scales, diagnose=diagnose, **options)
@@ -377,20 +426,31 @@ def certify_problem(
 
 
 def _test_problem(
-    problem: LinearProblem, omega_hat: np.ndarray, *, max_subsets: int, active_rtol: float
+    problem: LinearProblem,
+    omega_hat: np.ndarray,
+    *,
+    max_subsets: int,
+    active_rtol: float,
+    level: str = "vertex",
 ) -> SparsityCertificate:
     """Theorem 3's test (11)-(13) on ``problem`` for a validated ``omega_hat``."""
     support = omega_hat != 0
+    m_support = int(support.sum())
     eta = float(np.min(np.abs(omega_hat[support])))
-    geometry = _geometry(problem, int(support.sum()), max_subsets)
+    geometry = _geometry(problem, 2 * m_support, max_subsets)
     bound2 = support_threshold(problem, geometry, omega_hat)
     status, omega_v = sparsity_vertex(problem, omega_hat)
     common = dict(sigma2=geometry.sigma2, sigma2_exact=geometry.sigma2_exact, eta=eta)
     common.update(omega_hat=omega_hat, confounded=~geometry.kept, mu=problem.mu)
     common.update(feature_names=problem.feature_names, theorem2_bound=bound2, status=status)
+    common.update(sparsity_level=geometry.n_sparse)
     if omega_v is None:
         reason = f"program (11) not solved: cvxpy status '{status}'"
         return _certificate(None, reason, common)
+    vertex_size = vertex_support_size(problem, omega_v, geometry.kept)
+    geometry = _at_level(geometry, sparsity_level(m_support, vertex_size, level), max_subsets)
+    common.update(sigma2=geometry.sigma2, sigma2_exact=geometry.sigma2_exact)
+    common.update(sparsity_level=geometry.n_sparse, vertex_size=vertex_size)
     tau = support_threshold(problem, geometry, omega_v)
     active = _residual_norm(problem, omega_v) >= problem.mu * (1 - active_rtol)
     lam = np.abs(omega_v) > tau
@@ -421,6 +481,7 @@ def certify_sparsity(
     active_rtol: float = 1e-3,
     normalize_columns: bool = False,
     diagnose: bool = True,
+    level: str = "vertex",
     theta_names=None,
     feature_names=None,
 ) -> SparsityCertificate:
@@ -454,6 +515,15 @@ def certify_sparsity(
         Run the test on the dictionary rescaled to unit-norm columns (see the module
         notes); use it with a ``omega_hat`` from ``sparse_relaxation(...,
         normalize_columns=True)``. ``omega_hat`` is given in the original units.
+    level : {'vertex', '2M'}, default='vertex'
+        Sparsity level :math:`n` of :math:`\sigma^2_n` and :math:`\|e\|_{(Q,n)}` in
+        :math:`\tau`. ``'vertex'``: :math:`n = \min(\|\omega^v\|_0 + M, m')`, the
+        support size of :math:`\bar\omega - \omega^v` when :math:`\|\bar\omega\|_0
+        \le M` (rigorous: Theorem 2 is applied to :math:`\bar\omega` and
+        :math:`\omega^v`, and :math:`\omega^v` may have more than :math:`M` non-zeros).
+        ``'2M'``: the paper's literal :math:`\min(2M, m')`, valid when
+        :math:`\|\omega^v\|_0 \le M`. Theorem 2's bound at :math:`\hat\omega`
+        (``theorem2_bound``) always uses :math:`2M`.
     theta_names, feature_names : sequence of str, optional
         Names for the summary.
 
@@ -472,4 +542,5 @@ def certify_sparsity(
         phi_theta, phi, y, mu, theta_names=theta_names, feature_names=feature_names
     )
     options = dict(max_subsets=max_subsets, active_rtol=active_rtol, diagnose=diagnose)
+    options.update(level=level)
     return certify_problem(problem, omega_hat, normalize_columns=normalize_columns, **options)

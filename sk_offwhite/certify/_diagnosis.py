@@ -160,11 +160,13 @@ class SparsityDiagnosis:
     exhaustive : bool
         Whether the search enumerated every support (``None`` is then a proof).
     sigma2, tau, eta : float
-        :math:`\sigma^2_{2M}`, :math:`\tau` and :math:`\eta(\hat\omega)` of the certificate.
+        :math:`\sigma^2_n`, :math:`\tau` and :math:`\eta(\hat\omega)` of the certificate.
     certified : bool or None
         The certificate's verdict.
     reason : str
         The certificate's reason.
+    sparsity_level : int
+        The level :math:`n` of :math:`\sigma^2_n` (``sigma2``) used by :math:`\tau`.
     """
 
     support_size: int
@@ -180,6 +182,7 @@ class SparsityDiagnosis:
     eta: float
     certified: bool | None
     reason: str
+    sparsity_level: int = 0
 
     @property
     def sparser_exists(self) -> bool:
@@ -229,14 +232,16 @@ def _conservative(d: SparsityDiagnosis) -> str:
         f"({search}; best residual {d.sparser_residual:.3g}), so omega_hat may well be "
         f"maximally sparse, but the sufficient test does not show it: {d.reason}; "
         f"tau/eta = {d.tau / d.eta:.3g}, tau grows with mu (the error at omega^v has norm "
-        f"mu, against {d.residual:.3g} at omega_hat) over sigma^2_2M = {d.sigma2:.3g}."
+        f"mu, against {d.residual:.3g} at omega_hat) over sigma^2_n = {d.sigma2:.3g} "
+        f"(n = {d.sparsity_level})."
     )
 
 
 def _certified(d: SparsityDiagnosis) -> str:
     return (
         f"certified: tau = {d.tau:.3g} < eta = {d.eta:.3g} (tau/eta = {d.tau / d.eta:.3g}, "
-        f"sigma^2_2M = {d.sigma2:.3g}); no support with fewer than {d.support_size} terms "
+        f"sigma^2_n = {d.sigma2:.3g}, n = {d.sparsity_level}); no support with fewer than "
+        f"{d.support_size} terms "
         f"fits within mu = {d.mu:.3g} (best residual {d.sparser_residual:.3g})."
     )
 
@@ -292,5 +297,5 @@ def diagnose(
     return SparsityDiagnosis(
         size, problem.mu, float(residual), float(physics), float(unexplained), names,
         float(best), exhaustive, certificate.sigma2, certificate.threshold, certificate.eta,
-        certificate.certified, certificate.reason,
+        certificate.certified, certificate.reason, certificate.sparsity_level,
     )  # fmt: skip
