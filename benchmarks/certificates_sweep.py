@@ -33,8 +33,10 @@ end give
 
 ``--process-noise-bound`` adds uniform noise eta^v to the yaw recursion
 (``make_vehicle_lateral(process_noise_bound=...)``); mu = b sqrt(T) still bounds the
-output noise only. ``--figures DIR`` writes the Fig. 2 scatter with its hulls and the
-certified fraction against the noise bound.
+output noise only. ``--speed-range`` changes the range of the speed (default 12-28 m/s,
+so p = 1/v in [0.036, 0.083]): a wider range makes the dictionary columns less collinear.
+``--figures DIR`` writes the Fig. 2 scatter with its hulls and the certified fraction
+against the noise bound.
 
 Usage::
 
@@ -74,13 +76,14 @@ PAPER = {"SFPS": "1.19 +- 0.19", "FPS": "1.79 +- 0.28"}
 DELTA_TERMS = ("x1 x6", "x2 x6", "x2 x6^2")
 
 
-def fit_and_linearise(noise_bound: float, seed: int, n_samples: int, process_noise: float = 0.0):
-    """The data, and the linearisation of the fit at the end of the support path."""
+def fit_and_linearise(noise_bound: float, seed: int, n_samples: int, **generator):
+    """The data, and the linearisation of the fit at the end of the support path.
+
+    ``generator``: further arguments of ``make_vehicle_lateral`` (``process_noise_bound``,
+    ``speed_range``).
+    """
     data = make_vehicle_lateral(
-        n_samples=n_samples,
-        noise_bound=noise_bound,
-        random_state=seed,
-        process_noise_bound=process_noise,
+        n_samples=n_samples, noise_bound=noise_bound, random_state=seed, **generator
     )
     physics = vehicle_physics_known_registers(data)
     est = GreyBoxSparseRegressor(physics, data.suggested_library, delta_states=[0], max_iter=1000)
@@ -121,12 +124,12 @@ def exact_sets(lin, mu: float) -> dict:
     return {k: v.worst_case_norm if v.solved else v.status for k, v in sets.items()}
 
 
-def one_run(noise_bound: float, seed: int, n_samples: int, process_noise: float = 0.0) -> dict:
+def one_run(noise_bound: float, seed: int, n_samples: int, **generator) -> dict:
     """Fit, linearise, certify under both rules for mu, and bound FPS/SFPS at b sqrt(T)."""
     start = time.perf_counter()
-    data, lin = fit_and_linearise(noise_bound, seed, n_samples, process_noise)
+    data, lin = fit_and_linearise(noise_bound, seed, n_samples, **generator)
     mu = noise_bound * np.sqrt(n_samples)
-    result = {"noise_bound": noise_bound, "process_noise_bound": process_noise, "seed": seed}
+    result = {"noise_bound": noise_bound, "seed": seed, **generator}
     for rule, bound in zip(RULES, (mu, "refined"), strict=True):
         result[rule] = certify_run(lin, bound)
     result["b sqrt(T), n = 2M"] = certify_run(lin, mu, level="2M")
@@ -224,18 +227,23 @@ def plot_hulls(runs: list[dict], noise_bounds, path: Path) -> None:
         rows = [r for r in runs if r["noise_bound"] == b]
         thetas = np.array([r["theta_hat"] for r in rows]).reshape(-1, 4)
         ok = np.array([r[RULES[0]]["certified"] is True for r in rows], bool)
+        exact = np.array([r["fit_support_exact"] for r in rows], bool)
         if len(thetas) < 2:
             continue
         pcs = principal_components(thetas)
         ax.scatter(*pcs[~ok].T, marker="x", c="tab:red", label="not certified")
         ax.scatter(*pcs[ok].T, marker="o", c="tab:blue", label="certified (Thm 5)")
-        for mask, style, name in ((np.ones_like(ok), "k--", "FPS hull"), (ok, "b-", "SFPS hull")):
-            if mask.sum() >= 1:
-                ax.plot(*hull_polygon(pcs[mask]).T, style, lw=1, label=name)
+        hulls = [(np.ones_like(ok), "k--", "FPS hull (all)"), (ok, "b-", "SFPS hull (certified)")]
+        if not np.array_equal(exact, ok):
+            hulls.append((exact, "g:", "fit support = supp(omega_bar), not certified"))
+        for mask, style, name in hulls:
+            if mask.any():
+                ax.plot(*hull_polygon(pcs[mask]).T, style, lw=1.5, label=name)
         ax.set_title(f"b = {b:g}, mu = b sqrt(T): {ok.sum()}/{len(ok)} certified")
         ax.set_xlabel("pca_1(theta)")
         ax.set_ylabel("pca_2(theta)")
-    np.atleast_1d(axes)[0].legend(fontsize="small")
+    for ax in np.atleast_1d(axes):
+        ax.legend(fontsize="x-small")
     fig.suptitle("Approximated FPS and SFPS (convex hulls of the Monte Carlo estimates)")
     fig.tight_layout()
     fig.savefig(path, dpi=120)
@@ -265,14 +273,24 @@ def main(argv=None) -> list[dict]:
     parser.add_argument("--n-samples", type=int, default=2000)
     parser.add_argument("--noise-bounds", type=float, nargs="+", default=[2e-5, 5e-5, 2e-4, 2e-3])
     parser.add_argument("--process-noise-bound", type=float, default=0.0)
+    parser.add_argument(
+        "--speed-range",
+        type=float,
+        nargs=2,
+        default=[12.0, 28.0],
+        help="range of the speed v in m/s (p = 1/v; the default is the generator's)",
+    )
     parser.add_argument("--out", type=Path, default=Path("reports/certificates_sweep.json"))
     parser.add_argument("--figures", type=Path, default=None, help="folder for the figures")
     args = parser.parse_args(argv)
     args.out.parent.mkdir(parents=True, exist_ok=True)
+    generator = dict(
+        process_noise_bound=args.process_noise_bound, speed_range=tuple(args.speed_range)
+    )
     runs = []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         for b in args.noise_bounds:
-            runs.append(one_run(b, seed, args.n_samples, args.process_noise_bound))
+            runs.append(one_run(b, seed, args.n_samples, **generator))
             r = runs[-1]
             for rule in VERDICTS:
                 print(f"b={b:g} seed={seed} mu {rule}: certified={r[rule]['certified']} "

@@ -17,7 +17,11 @@ initial states, J_omega) and computes, on that linearisation,
   and inf-norm): the exact feasible sets of the linearisation;
 * the paper's own statistic (Fig. 2): FPS and SFPS approximated by the convex hulls of the
   Monte Carlo estimates (all runs; certified runs), worst-case error of each estimate over
-  its hull (``hull_*`` in the summary).
+  its hull, in theta and in its first two principal components (``hull_*`` in the
+  summary; right panel of the figure).
+
+The certificate's sigma^2_n uses n = min(||omega^v||_0 + M, m') (see
+``certify_sparsity(level=...)``).
 
 The dictionary term ``x4 x6`` equals the physical regressor of theta4, so the FPS over the
 full dictionary is unbounded in theta4 (reported); "FPS" numbers use the dictionary without
@@ -57,8 +61,11 @@ from sk_offwhite import GreyBoxSparseRegressor, fit_gamma_path  # noqa: E402
 from sk_offwhite.certify import (  # noqa: E402
     certify_estimator,
     estimator_feasible_set,
+    hull_errors,
+    hull_polygon,
     linearise_estimator,
     multistep_relaxation,
+    principal_components,
     refined_mu,
 )
 from sk_offwhite.datasets import (  # noqa: E402
@@ -155,14 +162,21 @@ def _bounds(result) -> dict:
     }
 
 
-def hull_errors(thetas) -> list[float]:
-    """Paper's Fig. 2 statistic: mean and std over the estimates theta_i of the worst-case
-    error over the convex hull of the estimates, max_j ||theta_j - theta_i||_2."""
-    thetas = np.asarray(thetas, float).reshape(-1, 4)
-    if len(thetas) < 2:
-        return [np.nan, np.nan]
-    worst = np.max(np.linalg.norm(thetas[:, None] - thetas[None], axis=2), axis=1)
-    return [float(np.mean(worst)), float(np.std(worst))]
+def hull_statistics(runs: list[dict]) -> dict:
+    """Paper's Fig. 2 statistic, mean and std over the estimates theta_i in a hull of their
+    worst-case error over it, max_j ||theta_j - theta_i||_2, in theta and in the first two
+    principal components of all the estimates: FPS from every run, SFPS from the certified
+    runs."""
+    thetas = np.array([r["theta_hat"] for r in runs], float).reshape(-1, 4)
+    ok = np.array([r["certified"] is True for r in runs], bool)
+    pcs = principal_components(thetas) if len(thetas) >= 2 else thetas
+    return {
+        "hull_fps_all_runs": list(hull_errors(thetas)),
+        "hull_sfps_certified_runs": list(hull_errors(thetas[ok])),
+        "hull_fps_all_runs_pca": list(hull_errors(pcs)),
+        "hull_sfps_certified_runs_pca": list(hull_errors(pcs[ok])),
+        "hull_sizes": [int(len(thetas)), int(ok.sum())],
+    }
 
 
 def _stats(values) -> list[float]:
@@ -185,10 +199,7 @@ def summarise(runs: list[dict], args) -> dict:
         "mu_rule": args.mu_rule,
         "free_registers": args.free_registers,
         "causes": {c: sum(r["cause"] == c for r in runs) for c in {r["cause"] for r in runs}},
-        "hull_fps_all_runs": hull_errors([r["theta_hat"] for r in runs]),
-        "hull_sfps_certified_runs": hull_errors(
-            [r["theta_hat"] for r in runs if r["certified"] is True]
-        ),
+        **hull_statistics(runs),
         "share_certified": float(np.mean([r["certified"] is True for r in runs])),
         "share_support_exact": float(np.mean([r["support_exact"] for r in runs])),
         "share_truth_in_sfps": float(np.mean([r["truth_in_sfps"] for r in runs])),
@@ -207,7 +218,7 @@ def plot(runs: list[dict], path: Path) -> None:
     fps = np.array([r["fps"].get("norm2", np.nan) for r in runs])
     sfps = np.array([r["sfps"].get("norm2", np.nan) for r in runs])
     ok = np.array([r["certified"] is True for r in runs])
-    fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4))
+    fig, (left, right, hulls) = plt.subplots(1, 3, figsize=(15, 4))
     left.boxplot([sfps[np.isfinite(sfps)], fps[np.isfinite(fps)]])
     left.set_xticks([1, 2], ["SFPS (20)", "FPS (19)"])
     left.set_ylabel("worst-case parameter error ||e||_2")
@@ -218,10 +229,28 @@ def plot(runs: list[dict], path: Path) -> None:
     right.set_xlabel("FPS worst-case error")
     right.set_ylabel("SFPS worst-case error")
     right.legend()
-    fig.suptitle("Vehicle lateral dynamics: FPS vs SFPS (local linearisation of each fit)")
+    plot_hulls(hulls, np.array([r["theta_hat"] for r in runs], float).reshape(-1, 4), ok)
+    fig.suptitle("Vehicle lateral dynamics: exact FPS (19) vs SFPS (20) of each fit's "
+                 "linearisation; right: Monte Carlo convex hulls")  # fmt: skip
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def plot_hulls(ax, thetas: np.ndarray, ok: np.ndarray) -> None:
+    """Fig. 2: the estimates in their first two principal components, FPS hull (all runs)
+    and SFPS hull (certified runs)."""
+    if len(thetas) < 2:
+        return
+    pcs = principal_components(thetas)
+    ax.scatter(*pcs[~ok].T, marker="x", c="tab:red", label="not certified")
+    ax.scatter(*pcs[ok].T, marker="o", c="tab:blue", label="certified (Thm 5)")
+    for mask, style, name in ((np.ones_like(ok), "k--", "FPS hull"), (ok, "b-", "SFPS hull")):
+        if mask.any():
+            ax.plot(*hull_polygon(pcs[mask]).T, style, lw=1, label=name)
+    ax.set_xlabel("pca_1(theta)")
+    ax.set_ylabel("pca_2(theta)")
+    ax.legend(fontsize="small")
 
 
 def main(argv=None) -> dict:

@@ -319,8 +319,10 @@ def certify_estimator(
     linearisation : Linearisation, optional
         Reuse a linearisation computed before.
     **options
-        ``max_subsets``, ``active_rtol``, ``normalize_columns``, ``diagnose`` of
-        :func:`~sk_offwhite.certify.certify_sparsity`.
+        ``max_subsets``, ``active_rtol``, ``normalize_columns``, ``diagnose``, ``level``
+        of :func:`~sk_offwhite.certify.certify_sparsity` (``level='vertex'``, the default:
+        :math:`\sigma^2_n` at :math:`n = \min(\|\omega^v\|_0 + M, m')`; ``'2M'``: the
+        paper's literal level).
 
     Returns
     -------
