@@ -142,6 +142,18 @@ def test_a_bad_level_is_named(dense_vertex_case):
         certify_sparsity(xi, phi, y, mu, omega_hat, level="M")
 
 
+def test_an_estimate_infeasible_under_mu_is_diagnosed_even_without_a_verdict(
+    dense_vertex_case,
+):
+    """mu below the residual omega_hat leaves: (11) has no solution, so no verdict, and the
+    diagnosis says why (e.g. a mu that does not cover process noise)."""
+    xi, phi, y, mu, omega_hat = dense_vertex_case
+    cert = certify_sparsity(xi, phi, y, 0.1 * mu, omega_hat)
+    assert cert.certified is None and cert.status == "infeasible"
+    assert cert.diagnosis.cause == "infeasible"
+    assert cert.explain().startswith("omega_hat is not feasible")
+
+
 # --- The vehicle's process noise eta^v enters the recursion ---
 
 

@@ -193,10 +193,10 @@ class SparsityDiagnosis:
     def cause(self) -> str:
         """``'certified'``, ``'infeasible'``, ``'sparser support'``, ``'conservative'``
         or ``'not computed'``."""
+        if self.residual > self.mu * (1 + 1e-3):
+            return "infeasible"  # also when (11) is then infeasible and no verdict is made
         if self.certified is None:
             return "not computed"
-        if self.residual > self.mu * (1 + 1e-3):
-            return "infeasible"
         if self.sparser_exists:
             return "sparser support"
         return "certified" if self.certified else "conservative"
