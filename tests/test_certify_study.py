@@ -178,3 +178,50 @@ def test_vehicle_process_noise_enters_the_yaw_recursion():
 def test_vehicle_process_noise_bound_is_checked():
     with pytest.raises(ValueError, match="process_noise_bound"):
         make_vehicle_lateral(n_samples=50, process_noise_bound=-1.0)
+
+
+# --- The sweep's tables, on made-up runs (no fitting) ---
+
+
+def _sweep_module():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "certificates_sweep.py"
+    spec = importlib.util.spec_from_file_location("certificates_sweep", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def _made_up_run(seed, certified, theta, fps=0.4, sfps=0.07):
+    verdict = {"certified": certified, "mu": 0.00224}
+    return {
+        "noise_bound": 5e-5,
+        "seed": seed,
+        "b sqrt(T)": verdict,
+        "refined": {"certified": True, "mu": 0.0013},
+        "b sqrt(T), n = 2M": {"certified": certified, "mu": 0.00224},
+        "theta_hat": theta,
+        "fit_support_exact": True,
+        "exact_sets": {"FPS": fps, "SFPS": sfps},
+    }
+
+
+def test_sweep_tables_count_and_hull_the_right_runs(tmp_path):
+    sweep = _sweep_module()
+    thetas = [[2.0, -1.0, -1.0, 3.7], [2.0, -1.0, -1.0, 3.7 + 3.0], [2.0 + 4.0, -1.0, -1.0, 3.7]]
+    runs = [_made_up_run(0, True, thetas[0]), _made_up_run(1, True, thetas[1]),
+            _made_up_run(2, False, thetas[2], fps=0.6)]  # fmt: skip
+    assert "| 5e-05 | 2/3 | 3/3 | 2/3 | 3/3 |" in sweep.table(runs, [5e-5])
+    hulls = sweep.hull_table(runs, [5e-5]).splitlines()
+    # FPS over the three estimates (sides 3, 4, 5): worst-case errors 4, 5, 5; SFPS over the
+    # two certified: 3, 3
+    assert hulls[2].startswith("| paper | PCA | 1.79 +- 0.28 | 1.19 +- 0.19")
+    assert hulls[3].startswith("| 5e-05 | theta | 4.67 +- 0.47 (3) | 3 +- 0 (2) | 4.67 +- 0.47 (3)")
+    assert hulls[4].startswith("| 5e-05 | PCA | 4.67 +- 0.47 (3) | 3 +- 0 (2)")
+    exact = sweep.exact_table(runs, [5e-5]).splitlines()[2]
+    assert exact.startswith("| 5e-05 | 0.00224 | 0.467 +- 0.094 (3) | 0.07 +- 0 (3) | 0.4 +- 0 (2)")
+    sweep.plot_hulls(runs, [5e-5], tmp_path / "hulls.png")
+    sweep.plot_fraction(runs, [5e-5], tmp_path / "fraction.png")
+    assert (tmp_path / "hulls.png").stat().st_size > 0 and (tmp_path / "fraction.png").exists()
