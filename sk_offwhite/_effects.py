@@ -38,6 +38,7 @@ __all__ = [
     "Overflow",
     "QuadraticDrag",
     "RelaxedLaw",
+    "SensorCalibration",
     "Stiffness",
     "Switched",
     "SwitchedTerm",
@@ -263,6 +264,54 @@ class OutputOffset(Effect):
 
     def describe(self, state_names, output_names, values=None) -> str:
         return f"the sensor of {output_names[self.output]} reads with a constant offset"
+
+
+class SensorCalibration(Effect):
+    r"""Output ``output`` reads a static polynomial of what the physics predicts.
+
+    An uncalibrated sensor whose reading is not linear in the quantity it measures (a
+    level sensor, a thermocouple, a strain gauge):
+
+    .. math::
+
+        z \leftarrow z + \sum_{k=0}^{d} c_k\,\xi^k, \qquad
+        \xi = \frac{z - m}{s},
+
+    with parameters ``{name}_c0`` ... ``{name}_c{d}`` (:math:`c_k`, in the output's units,
+    starting at 0: the declared output map). The centre :math:`m` and scale :math:`s`
+    are fixed numbers taken from the data (the loop uses the mean and standard deviation
+    of the simulated output), so :math:`\xi` is dimensionless and the fitted curve does
+    not depend on the units of the data. With :math:`d = 0` this is
+    :class:`OutputOffset`; :math:`c_1` is a gain error, :math:`c_2` a curvature.
+    """
+
+    target = "output"
+
+    def __init__(
+        self, output: int, center: float, scale: float, *, degree: int = 2, name: str = "sensor"
+    ):
+        if not (np.isfinite(center) and np.isfinite(scale) and scale > 0):
+            raise ValueError(f"center and scale must be finite, scale > 0; got {center}, {scale}.")
+        if isinstance(degree, bool) or int(degree) != degree or degree < 0:
+            raise ValueError(f"degree must be an integer >= 0, got {degree!r}.")
+        self.output, self.center, self.scale = int(output), float(center), float(scale)
+        self.degree, self.name = int(degree), name
+
+    def parameters(self) -> dict[str, Parameter]:
+        return {f"{self.name}_c{k}": Parameter(0.0) for k in range(self.degree + 1)}
+
+    def apply_output(self, x, u, z, theta):
+        xi = (z[self.output] - self.center) / self.scale
+        reading = theta[f"{self.name}_c{self.degree}"]
+        for k in range(self.degree - 1, -1, -1):
+            reading = reading * xi + theta[f"{self.name}_c{k}"]
+        return z.at[self.output].add(reading)
+
+    def describe(self, state_names, output_names, values=None) -> str:
+        return (
+            f"the sensor of {output_names[self.output]} reads a degree-{self.degree} "
+            "polynomial of it (an uncalibrated, nonlinear sensor)"
+        )
 
 
 class AdditiveEffect(Effect):

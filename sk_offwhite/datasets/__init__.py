@@ -17,6 +17,7 @@ from sk_offwhite.datasets._mechanical import (
     make_duffing_oscillator,
     make_pendulum_drag,
 )
+from sk_offwhite.datasets._sensor import make_nonlinear_sensor_tank, sensor_reading
 from sk_offwhite.datasets._synthetic import (
     make_cascaded_tanks,
     make_friction_oscillator,
@@ -36,10 +37,12 @@ __all__ = [
     "make_duffing_oscillator",
     "make_friction_oscillator",
     "make_leaky_tank",
+    "make_nonlinear_sensor_tank",
     "make_pendulum_drag",
     "make_saturating_actuator",
     "make_vehicle_lateral",
     "safe_sqrt",
+    "sensor_reading",
     "vehicle_dictionary_library",
     "vehicle_physics_known_registers",
 ]

@@ -10,7 +10,8 @@ only where they make physical sense for the variables' kinds
   stiffness in the kinematic partner (the position), a constant (a force offset);
 * any equation: a constant (:class:`~sk_offwhite.Bias`), a leak for generic states;
 * inputs in the hypothesis: a saturating actuator and a dead zone;
-* measured states: a sensor offset; measured ceilings: an output saturation.
+* measured states: a sensor offset and a sensor calibration (offset, gain, curvature:
+  :class:`~sk_offwhite.SensorCalibration`); measured ceilings: an output saturation.
 
 The strongest dictionary terms are also proposed as they are
 (:class:`~sk_offwhite.DictionaryTerm`, when ``library`` is given): that is how an effect
@@ -40,6 +41,7 @@ from .._effects import (
     OutputSaturation,
     Overflow,
     QuadraticDrag,
+    SensorCalibration,
     Stiffness,
 )
 from .._kinds import LEVEL_KINDS, VELOCITY_KINDS, Kinds
@@ -228,6 +230,27 @@ def _offsets(hypotheses, measured, output_names) -> list[Candidate]:
     ]
 
 
+def _calibrations(states, measured, output_names) -> list[Candidate]:
+    """A static quadratic map of each measured state: an uncalibrated, nonlinear sensor,
+    centred and scaled by the simulated state so its coefficients are in output units."""
+    out = []
+    for o, state in enumerate(measured):
+        level = states[:, state]
+        center, scale = float(np.mean(level)), float(np.std(level))
+        if not (np.isfinite(center) and np.isfinite(scale) and scale > 0):
+            continue
+        name = output_names[o]
+        out.append(
+            Candidate(
+                SensorCalibration(o, center, scale, name=f"sensor_{name}"),
+                f"The sensor of {name} may not read {name} linearly: an offset, a gain and "
+                "a curvature of its reading (a static map of the output; no state equation "
+                "changes).",
+            )
+        )
+    return out
+
+
 def _ceilings(range_facts, output_names, measured, names) -> list[Candidate]:
     """A measured ceiling the model exceeds: a saturating sensor, or a capped state."""
     out = []
@@ -299,7 +322,8 @@ def propose_effects(
         Simulated states of the fitted baseline (levels are read in their scale).
     measured : sequence of int, default=None
         Index of the state each output measures directly, when the output map is
-        :class:`~sk_offwhite._physics.MeasuredStates`; enables offset and cap candidates.
+        :class:`~sk_offwhite._physics.MeasuredStates`; enables offset, calibration and cap
+        candidates.
     u : ndarray of shape (n_samples, n_inputs), default=None
         Inputs of the record, with ``input_names``; enable actuator candidates.
     input_names : sequence of str, default=()
@@ -327,5 +351,6 @@ def propose_effects(
         ]
     if measured is not None:
         proposals += _offsets(hypotheses, list(measured), output_names)
+        proposals += _calibrations(states, list(measured), output_names)
     proposals += _ceilings(range_facts, output_names, measured, names)
     return unique_by_name(proposals)

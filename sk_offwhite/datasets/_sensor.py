@@ -1,0 +1,126 @@
+"""A tank whose level sensor is not linear: the missing effect is in the output map."""
+
+from __future__ import annotations
+
+import numpy as np
+from sklearn.utils import Bunch, check_random_state
+
+from sk_offwhite._physics import Parameter, PhysicsModel
+from sk_offwhite.datasets._common import (
+    _bunch,
+    _check_n_samples,
+    _gaussian,
+    _gaussian_noise,
+    _multisine,
+    _noise_stds,
+    _rollout,
+)
+from sk_offwhite.datasets._synthetic import POSITIVE, tank_rhs
+
+SENSOR_THETA = {"k": 0.5, "b": 0.5}
+SENSOR_CURVATURE, SENSOR_DT, SENSOR_X0 = 0.04, 1.0, 4.0
+
+
+def sensor_reading(level, curvature: float = SENSOR_CURVATURE):
+    """What the sensor reads at ``level``: :math:`x + q x^2`."""
+    return level + curvature * level**2
+
+
+def _sensor_tank_physics(k: float, x0: float) -> PhysicsModel:
+    """The declared tank: Torricelli outlet, the pump gain ``b`` known, the level read as is."""
+    return PhysicsModel.from_ode(
+        tank_rhs,
+        SENSOR_DT,
+        output=0,
+        parameters={
+            "k": Parameter(k, POSITIVE),
+            "b": Parameter(SENSOR_THETA["b"], fixed=True),
+        },
+        n_states=1,
+        n_inputs=1,
+        method="euler",
+        x0=(x0,),
+        state_names=("x",),
+        input_names=("u",),
+        output_names=("x",),
+        state_kinds=("level",),
+        input_kinds=("flow",),
+    )
+
+
+def _sensor_record(rng, n: int, physics: PhysicsModel, stds) -> tuple:
+    u = np.clip(2.0 + 0.6 * _multisine(rng, n, 0.02), 0.0, None)[:, None]
+    w = _gaussian(rng, (n - 1, 1), stds[1])
+    x = _rollout(physics, SENSOR_THETA, np.array([SENSOR_X0]), u, None, w)
+    e = _gaussian(rng, (n, 1), stds[0])
+    return (u, x, sensor_reading(x) + e), (e, w)
+
+
+def make_nonlinear_sensor_tank(
+    n_samples: int = 1000,
+    noise_std: float = 0.02,
+    random_state=None,
+    *,
+    process_noise_std: float = 0.0,
+) -> Bunch:
+    """Single tank read by a level sensor whose characteristic is not linear.
+
+    True system, one explicit-Euler step of :math:`\\Delta t = 1` s per sample:
+
+    .. math::
+
+        \\dot x = -k \\sqrt{x} + b u, \\qquad z = x + q x^2 + \\eta,
+
+    with :math:`k = 0.5`, :math:`b = 0.5` (the pump gain, known: fixed in the declared
+    physics), :math:`q = 0.04` and :math:`x(0) = 4`. The physics reads the level as it is
+    (:math:`z = x`); the missing effect is static and in the output map, so no term of
+    the state equations can stand for it exactly. ``hidden_effect["rates"]`` is
+    ``{"curvature": q}``; :func:`sensor_reading` is the true characteristic. Input: pump
+    flow, multisine 0-0.02 cycles/sample, mean 2, std 0.6, clipped at 0 (levels about 0-12).
+    Suggested library: polynomials of degree 2 on ``[x, u]``.
+
+    Parameters
+    ----------
+    n_samples : int, default=1000
+        Length of each record.
+    noise_std : float, default=0.02
+        Standard deviation of the Gaussian sensor noise.
+    random_state : int, RandomState instance or None, default=None
+        Seed of the input and noise realisations.
+    process_noise_std : float, default=0.0
+        Standard deviation of a Gaussian disturbance added to the level update.
+
+    Returns
+    -------
+    data : sklearn.utils.Bunch
+        ``u, z, u_val, z_val, x, x_val, physics, true_parameters, true_x0, true_x0_val,
+        hidden_effect, suggested_library, noise, sampling_time, DESCR``.
+    """
+    import pysindy as ps
+
+    n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
+    rng = check_random_state(random_state)
+    truth = _sensor_tank_physics(SENSOR_THETA["k"], SENSOR_X0)
+    (est, est_noise), (val, val_noise) = (_sensor_record(rng, n, truth, stds) for _ in range(2))
+    hidden = {
+        "target": "output",
+        "equation": None,
+        "variables": ["x"],
+        "sign": 1,
+        "description": "The level sensor reads x + q x^2 instead of x.",
+        "rates": {"curvature": SENSOR_CURVATURE},
+    }
+    noise = _gaussian_noise(stds, (est_noise, val_noise), "level equation")
+    x0 = np.array([SENSOR_X0])
+    return _bunch(
+        _sensor_tank_physics(0.4, float(est[2][0, 0])),
+        (est, val),
+        SENSOR_THETA,
+        (x0, x0),
+        hidden,
+        ps.PolynomialLibrary(degree=2),
+        noise,
+        "Tank x' = -k sqrt(x) + b u, k=0.5, b=0.5 (known), Euler dt=1 s; the level sensor "
+        "reads z = x + 0.04 x^2; the physics reads z = x.\n",
+        sampling_time=SENSOR_DT,
+    )
