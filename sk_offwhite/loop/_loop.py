@@ -206,6 +206,21 @@ def _cv_rmse(est, u, z, settings: LoopSettings) -> float:
     return float(-np.mean(scores))
 
 
+def _set_cv(board, effects, warm, u, z, settings, failures) -> float:
+    """CV RMSE of an effect set, each fold started from the set's own fit on the whole
+    record (:func:`fit_continued` from ``warm``), the model that would be kept: an effect
+    may move the declared parameters far (a sensor calibration rescales the levels the
+    outflow laws act on), and folds started from the declared physics' fit would then
+    judge the set from a start that belongs to another model."""
+    model = board.model(effects, warm)
+    label = "effects " + _label(effects)
+    fitted = _attempt(failures, label, fit_continued, _estimator(model, settings), u, z,
+                      settings.horizon)  # fmt: skip
+    if fitted is not None:
+        model = warm_physics(model, fitted)
+    return _cv_rmse(_estimator(model, settings, cv=True), u, z, settings)
+
+
 def _attempt(failures: list, label: str, function, *args):
     """``function(*args)``; a failure becomes a line of ``failures`` (and ``None``), and
     warnings are re-issued prefixed with ``label``."""
@@ -269,12 +284,53 @@ def _effect_parameters(est, effects) -> dict:
     }
 
 
+def _declared_parameters(est, board) -> dict:
+    """The fitted free parameters of ``board``'s declared physics (none of a candidate
+    effect's), as :class:`Parameter` with the declared bounds."""
+    switched = {name for effect in getattr(board, "board", ()) for name in effect.parameters()}
+    return {
+        name: Parameter(est.parameters_[name], spec.bounds)
+        for name, spec in board.physics.parameters.items()
+        if not spec.fixed and name not in switched and name in est.parameters_
+    }
+
+
 def _quick_fit(board, effects, warm, u, z, settings):
-    """``(estimation RMSE, fitted effect parameters)`` of the physics plus ``effects``
-    (switched on on ``board``): a multiple-shooting fit over ``horizon`` windows, scored by
-    the free run of the record."""
+    """``(estimation RMSE, fitted parameters)`` of the physics plus ``effects`` (switched on
+    on ``board``): a multiple-shooting fit over ``horizon`` windows, scored by the free run
+    of the record. The parameters are those of ``effects`` and of the declared physics: a
+    set is refitted and cross-validated from where its own fit ended, since an effect may
+    move the declared parameters far (a sensor calibration rescales the levels the
+    outflow laws act on)."""
     est = _estimator(board.model(effects, warm), settings).fit(u, z)
-    return _rmse(est.predict(u), z), _effect_parameters(est, effects)
+    fitted = {**_declared_parameters(est, board), **_effect_parameters(est, effects)}
+    return _rmse(est.predict(u), z), fitted
+
+
+def _starts(warm: dict, effect, params: dict) -> list[dict]:
+    """Starts of a set that gains ``effect``: the set's parameters ``warm``, with the
+    effect's from its fit alone (``params``) and from its proposal (values from the data).
+    Fitted alone, an effect may take values that only make sense without the others (a
+    sensor calibration absorbing what an overflow explains)."""
+    alone, proposed = _own(params, effect), effect.parameters()
+    return [{**warm, **alone}] + ([{**warm, **proposed}] if alone != proposed else [])
+
+
+def _best_of(board, effects, starts, u, z, settings, failures):
+    """The :func:`_quick_fit` of lowest estimation RMSE over ``starts`` (``None`` if every
+    one fails)."""
+    label, best = "effects " + _label(effects), None
+    for start in starts:
+        fitted = _attempt(failures, label, _quick_fit, board, effects, start, u, z, settings)
+        if fitted is not None and (best is None or fitted[0] < best[0]):
+            best = fitted
+    return best
+
+
+def _own(params: dict, effect) -> dict:
+    """The entries of ``params`` that are ``effect``'s own parameters."""
+    names = effect.parameters()
+    return {name: value for name, value in params.items() if name in names}
 
 
 def _rank_alone(board, candidates, u, z, settings, failures):
@@ -321,12 +377,10 @@ def _forward(board, ranked, u, z, settings, base_rmse, failures):
         for effect, params, _ in pool:
             if effect in current:
                 continue
-            warm = {**steps[-1][1], **params}
             label = "effects " + " + ".join(e.name for e in (*current, effect))
             logger.info("  %s", label)
-            fitted = _attempt(
-                failures, label, _quick_fit, board, (*current, effect), warm, u, z, settings
-            )
+            starts = _starts(steps[-1][1], effect, params)
+            fitted = _best_of(board, (*current, effect), starts, u, z, settings, failures)
             if fitted is not None:
                 trials.append((fitted[0], effect, fitted[1]))
         if not trials:
@@ -346,7 +400,7 @@ def _best_pair(board, pool, u, z, settings, base_rmse, failures):
         for b in range(a + 1, len(pool)):
             effects = (pool[a][0], pool[b][0])
             label = "effects " + " + ".join(e.name for e in effects)
-            warm = {**pool[a][1], **pool[b][1]}
+            warm = {**pool[a][1], **_own(pool[b][1], pool[b][0])}
             fitted = _attempt(failures, label, _quick_fit, board, effects, warm, u, z, settings)
             if fitted is not None and (best is None or fitted[0] < best[2]):
                 best = (effects, fitted[1], fitted[0])
@@ -357,11 +411,15 @@ def _best_pair(board, pool, u, z, settings, base_rmse, failures):
 
 def _nested(ranked, base_rmse, settings):
     """The nested sets of the candidates that helped alone, in the order of their gain
-    (each effect starts from its parameters fitted alone)."""
+    (the declared parameters start from the first one's fit, each effect from its own)."""
     kept = [(c.effect, params) for r, c, params in ranked if r < base_rmse]
     kept = kept[: settings.max_effects]
     return [
-        (tuple(e for e, _ in kept[:k]), {n: p for _, ps in kept[:k] for n, p in ps.items()}, None)
+        (
+            tuple(e for e, _ in kept[:k]),
+            {**kept[0][1], **{n: p for e, ps in kept[1:k] for n, p in _own(ps, e).items()}},
+            None,
+        )
         for k in range(1, len(kept) + 1)
     ]
 
@@ -406,13 +464,57 @@ def _select_effects(
     trail = [("declared physics", declared_cv)]
     for k, (effects, warm, _) in enumerate(steps, 1):
         logger.info("  CV of %s (%d of %d)", _label(effects), k, len(steps))
-        model = board.model(effects, warm)
-        score = _cv_rmse(_estimator(model, settings, cv=True), u, z, settings)
+        score = _set_cv(board, effects, warm, u, z, settings, failures)
         trail.append((_label(board.ordered(effects)), score))
     k = _smallest_within([s for _, s in trail], settings.tolerance)
     if k == 0 or trail[k][1] > (1.0 - settings.min_gain) * trail[0][1]:
         return (), trail, singles, {}
-    return board.ordered(steps[k - 1][0]), trail, singles, steps[k - 1][1]
+    chosen, warm, _ = steps[k - 1]
+    chosen, warm, rows = _swap(board, ranked, (chosen, warm, trail[k][1]), u, z, settings, failures)
+    return board.ordered(chosen), trail + rows, singles, warm
+
+
+def _swap(board, ranked, chosen, u, z, settings, failures):
+    """Stepwise refinement of the chosen set: each other candidate of the ``beam`` added to
+    it (while it has fewer than ``max_effects``) or exchanged for one of its effects,
+    started from the set's parameters. A move whose fit lowers the estimation RMSE (by
+    ``min_gain`` for an addition) is cross-validated; the best is kept when its CV RMSE is
+    lower by ``min_gain``. Greedy forward selection misses a set whose members help only
+    in each other's company, reached through another order (a nonlinear sensor that needs
+    the levels an overflow leaves).
+
+    Returns the effects, their parameters and the CV trail rows of the moves tried.
+    """
+    effects, warm, cv = chosen
+    base = _attempt(failures, "effects " + _label(effects), _quick_fit, board, effects, warm,
+                    u, z, settings)  # fmt: skip
+    if base is None:
+        return effects, warm, []
+    rows, best = [], (effects, warm, (1.0 - settings.min_gain) * cv)
+    for trial, starts, bar in _moves(effects, warm, ranked, base[0], settings):
+        logger.info("  stepwise: %s", _label(trial))
+        fitted = _best_of(board, trial, starts, u, z, settings, failures)
+        if fitted is None or not fitted[0] < bar:
+            continue
+        score = _set_cv(board, trial, fitted[1], u, z, settings, failures)
+        rows.append((_label(board.ordered(trial)), score))
+        if score < best[2]:
+            best = (trial, fitted[1], score)
+    return best[0], best[1], rows
+
+
+def _moves(effects, warm, ranked, rmse, settings):
+    """``(effects, starts, RMSE to beat)`` of each addition and exchange of the beam's
+    other candidates (see :func:`_starts`)."""
+    pool = [(c.effect, p) for r, c, p in ranked[: settings.beam] if c.effect not in effects]
+    for effect, params in pool:
+        if len(effects) < settings.max_effects:
+            gain = (1.0 - settings.min_gain) * rmse
+            yield (*effects, effect), _starts(warm, effect, params), gain
+        for out in effects:
+            kept = {n: p for n, p in warm.items() if n not in out.parameters()}
+            trial = tuple(e for e in effects if e != out) + (effect,)
+            yield trial, _starts(kept, effect, params), rmse
 
 
 def _delta_cv(est, u, z, settings) -> float:
