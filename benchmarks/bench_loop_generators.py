@@ -28,6 +28,7 @@ from sk_offwhite import (
     Overflow,
     Parameter,
     QuadraticDrag,
+    SensorCalibration,
     Stiffness,
 )
 from sk_offwhite.datasets import (
@@ -37,6 +38,7 @@ from sk_offwhite.datasets import (
     make_duffing_oscillator,
     make_friction_oscillator,
     make_leaky_tank,
+    make_nonlinear_sensor_tank,
     make_pendulum_drag,
     make_saturating_actuator,
 )
@@ -67,6 +69,7 @@ SYSTEMS = {
     "friction": (make_friction_oscillator, 500, Friction, None),
     "actuator": (make_saturating_actuator, 500, InputSaturation, None),
     "tanks": (_tanks, 500, Overflow, None),
+    "sensor": (make_nonlinear_sensor_tank, 400, SensorCalibration, None),
 }
 
 

@@ -7,7 +7,7 @@ the sparse corrections that show what is left, and writes a report with the erro
 and after on both records under both scoring protocols and the CV-best model.
 
 Run: ``python examples/cascaded_tanks_loop.py [--out DIR] [--quick] [--quiet] [--no-cache]
-[--relax-exponents]``
+[--relax-exponents] [--selection cv|tail]``
 (``DIR`` defaults to ``reports/cascaded_tanks``); the stages of the loop are logged as they
 run (``--quiet`` switches that off); compiled programs are kept on disk for the next run
 (:func:`sk_offwhite.enable_compilation_cache`; ``--no-cache`` switches that off).
@@ -49,6 +49,13 @@ def main(argv=None):
         "(see the tutorial for what that changes)",
     )
     parser.add_argument(
+        "--selection",
+        choices=("cv", "tail"),
+        default="cv",
+        help="score every choice by 3-fold CV (default) or by the held-out last 25 %% of "
+        "the estimation record (LoopSettings.selection)",
+    )
+    parser.add_argument(
         "--no-cache",
         action="store_true",
         help="do not keep compiled programs on disk (by default they are, in "
@@ -68,6 +75,7 @@ def main(argv=None):
         max_iter=40 if args.quick else 300,
         max_effects=1 if args.quick else 3,
         max_candidates=3 if args.quick else None,
+        selection=args.selection,
     )
     start = time.perf_counter()
     result = close_the_loop(physics, tanks_library(), data.u_est, data.z_est, settings=settings)
@@ -76,7 +84,9 @@ def main(argv=None):
     elapsed = time.perf_counter() - start
     notes = [
         "Data: measured Cascaded Tanks benchmark (Schoukens, Mattsson, Wigren, Noël 2016).",
-        "Everything is chosen on the estimation record (γ and effects by 3-fold CV inside it);",
+        "Everything is chosen on the estimation record (γ and effects by "
+        + ("3-fold CV" if args.selection == "cv" else "its held-out last 25 %")
+        + " inside it);",
         "the validation record is only scored. Protocols: `original` simulates the whole",
         "record from the fitted initial state (the benchmark states that both records start",
         "from the same state); `init_window` estimates the state from the first 50 samples",

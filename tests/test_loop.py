@@ -9,6 +9,7 @@ import pytest
 from sk_offwhite import (
     DeadZone,
     Friction,
+    GreyBoxSparseRegressor,
     InputSaturation,
     Leak,
     OutputOffset,
@@ -22,8 +23,11 @@ from sk_offwhite.loop import (
     LoopSettings,
     Term,
     close_the_loop,
+    held_out_rmse,
+    held_out_splits,
     propose_effects,
     score_models,
+    warm_physics,
     write_report,
 )
 from sk_offwhite.loop._hypotheses import feature_variables
@@ -187,3 +191,43 @@ def test_shared_programs_find_the_same_leak():
     assert [effect.name for effect in result.effects] == ["leak_x"]
     assert "leak_x_on" not in result.final.parameters_  # the final model is the plain one
     np.testing.assert_allclose(result.final.parameters_["leak_x_rate"], 0.05, rtol=0.1)
+
+
+def test_held_out_splits_are_folds_or_the_tail():
+    folds = held_out_splits(LoopSettings(n_folds=3), 300)
+    assert [list(test[[0, -1]]) for _, test in folds] == [[0, 99], [100, 199], [200, 299]]
+    ((train, test),) = held_out_splits(LoopSettings(selection="tail"), 400)
+    np.testing.assert_array_equal(train, np.arange(300))
+    np.testing.assert_array_equal(test, np.arange(300, 400))
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [({"selection": "holdout"}, "selection"), ({"tail_fraction": 1.0}, "tail_fraction")],
+)
+def test_selection_settings_are_checked(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        LoopSettings(**kwargs)
+
+
+def test_a_tail_no_longer_than_the_init_window_is_refused():
+    with pytest.raises(ValueError, match="init_window"):
+        held_out_splits(LoopSettings(selection="tail", init_window=50), 160)
+
+
+def test_the_tail_score_finds_the_leak():
+    """Selection by the held-out last quarter of the record: the leak is added, and every
+    CV figure of the trail is that single held-out block's RMSE."""
+    data = make_leaky_tank(n_samples=400, random_state=1)
+    settings = LoopSettings(
+        gammas=(1e-3,), max_iter=100, max_effects=1, max_candidates=4, fit_delta=False,
+        selection="tail",
+    )  # fmt: skip
+    result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=settings)
+    assert [effect.name for effect in result.effects] == ["leak_x"]
+    declared = GreyBoxSparseRegressor(
+        warm_physics(data.physics, result.baseline), max_iter=100, init_window=50
+    ).fit(data.u[:300], data.z[:300])
+    tail = -held_out_rmse(50)(declared, data.u[300:], data.z[300:])
+    assert result.selection[0][1] == pytest.approx(tail, rel=1e-6)
+    assert result.selection[-1][1] < 0.5 * tail

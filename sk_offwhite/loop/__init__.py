@@ -14,6 +14,7 @@ from ._loop import (
     analyse_model,
     close_the_loop,
     fit_continued,
+    held_out_splits,
     warm_physics,
 )
 from ._report import write_report
@@ -31,6 +32,7 @@ __all__ = [
     "evidence_hypotheses",
     "form_hypotheses",
     "held_out_rmse",
+    "held_out_splits",
     "promoted_terms",
     "propose_effects",
     "rank_terms",

@@ -56,7 +56,14 @@ from ._progress import StageClock, logger
 from ._scoring import MODEL_LABELS, held_out_rmse
 from ._switchboard import effect_sets
 
-__all__ = ["LoopResult", "LoopSettings", "close_the_loop", "fit_continued", "warm_physics"]
+__all__ = [
+    "LoopResult",
+    "LoopSettings",
+    "close_the_loop",
+    "fit_continued",
+    "held_out_splits",
+    "warm_physics",
+]
 
 
 @dataclass(frozen=True)
@@ -80,7 +87,10 @@ class LoopSettings:
     with a sparse :math:`\delta` are fitted (they show what is left, and cost a path each);
     ``share_programs`` whether every effect set is fitted on one compiled program (a
     :class:`~sk_offwhite.loop._switchboard.Switchboard`: less compilation, other rounding,
-    see that module).
+    see that module). ``selection`` is how every choice is scored: ``"cv"``, the mean
+    held-out RMSE over ``n_folds`` contiguous blocks; ``"tail"``, the held-out RMSE of the
+    last ``tail_fraction`` of the record (after its ``init_window``) when the rest is
+    fitted, which is how the model will be used: fitted on the past, run into the future.
     """
 
     gammas: tuple[float, ...] | None = None
@@ -101,8 +111,14 @@ class LoopSettings:
     n_promoted: int = 3
     fit_delta: bool = True
     share_programs: bool = False
+    selection: str = "cv"
+    tail_fraction: float = 0.25
 
     def __post_init__(self):
+        if self.selection not in ("cv", "tail"):
+            raise ValueError(f"selection must be 'cv' or 'tail', got {self.selection!r}.")
+        if not 0.0 < self.tail_fraction < 1.0:
+            raise ValueError(f"tail_fraction must be in (0, 1), got {self.tail_fraction!r}.")
         if self.max_candidates is not None and self.max_candidates < 1:
             raise ValueError(f"max_candidates must be None or >= 1, got {self.max_candidates}.")
         if self.gammas is not None and not (
@@ -192,13 +208,27 @@ def _estimator(physics, settings, *, cv=False, **params) -> GreyBoxSparseRegress
     )
 
 
+def held_out_splits(settings: LoopSettings, n_samples: int) -> list:
+    """``(train, test)`` index pairs of ``settings.selection``: ``n_folds`` contiguous
+    blocks, or the record's last ``tail_fraction`` held out."""
+    if settings.selection == "cv":
+        return list(KFold(settings.n_folds).split(np.zeros((n_samples, 1))))
+    cut = n_samples - max(int(round(settings.tail_fraction * n_samples)), 1)
+    if cut <= settings.init_window or n_samples - cut <= settings.init_window:
+        raise ValueError(
+            f"tail_fraction={settings.tail_fraction} of {n_samples} samples leaves a block no "
+            f"longer than init_window={settings.init_window}."
+        )
+    return [(np.arange(cut), np.arange(cut, n_samples))]
+
+
 def _cv_rmse(est, u, z, settings: LoopSettings) -> float:
-    """Mean held-out simulation RMSE over ``n_folds`` contiguous blocks."""
+    """Mean held-out simulation RMSE over the blocks of :func:`held_out_splits`."""
     scores = cross_val_score(
         est,
         u,
         z,
-        cv=KFold(settings.n_folds),
+        cv=held_out_splits(settings, len(u)),
         scoring=held_out_rmse(settings.init_window),
         params={"sample_index": np.arange(len(u))},
         error_score=-np.inf,
@@ -254,7 +284,7 @@ def _fit_delta(physics, library, u, z, settings, evidence=None):
         settings.gammas,
         n_gammas=settings.n_gammas,
         eps=settings.gamma_eps,
-        cv=KFold(settings.n_folds),
+        cv=held_out_splits(settings, len(u)),
         init_window=settings.init_window,
     )
     return path.estimator, path

@@ -176,10 +176,11 @@ def _gamma_lines(path, chosen: float) -> list[str]:
     """The support path as a table, or the single γ fitted."""
     if path is None:
         return [f"Single γ = {chosen:g} (no search).", ""]
+    folds = path.cv_error.shape[1]
+    how = f"{folds}-fold CV" if folds > 1 else "the held-out tail"
     return [
-        f"Support path: γ from γ_max = {path.gamma_max:.4g} down, chosen by "
-        f"{path.cv_error.shape[1]}-fold CV on the estimation record (errors in output "
-        f"standard deviations; chosen γ = {chosen:.4g}):",
+        f"Support path: γ from γ_max = {path.gamma_max:.4g} down, chosen by {how} on the "
+        f"estimation record (errors in output standard deviations; chosen γ = {chosen:.4g}):",
         "",
         "```",
         path.summary(),
