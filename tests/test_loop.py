@@ -82,6 +82,20 @@ def test_report_is_written_with_figures(leaky, tmp_path):
     assert "## Time per stage" in text and "| effect selection |" in text
 
 
+def test_every_effect_set_of_the_trail_is_scored_on_validation(leaky, tmp_path):
+    """Each structural step of the trail carries its fit on the estimation record, and the
+    report scores it on the validation record next to its CV error."""
+    data, result = leaky
+    assert set(result.set_fits) == {name for name, _ in result.selection}
+    records = {"estimation": (data.u, data.z), "validation": (data.u_val, data.z_val)}
+    path = write_report(result, score_models(result, records), records, tmp_path, title="t")
+    text = path.read_text()
+    assert "| validation RMSE (init_window) |" in text
+    leak = _validation_rmse(result, data, "augmented physics")
+    row = next(line for line in text.splitlines() if line.startswith("| leak_x |"))
+    assert float(row.split("|")[3]) == pytest.approx(leak, abs=5e-5)  # printed to 4 decimals
+
+
 def test_every_stage_is_timed(leaky):
     _, result = leaky
     stages = ["declared physics", "evidence", "physics + sparse δ", "effect selection"]
@@ -169,7 +183,7 @@ def test_max_candidates_caps_the_candidates_fitted(monkeypatch):
     monkeypatch.setattr(_loop, "_cv_rmse", lambda *args: 1.0)
     physics = make_leaky_tank(n_samples=50, random_state=0).physics
     candidates = [SimpleNamespace(effect=Leak(0, name=name)) for name in ("a", "b", "c")]
-    effects, trail, _, warm = _loop._select_effects(
+    effects, trail, _, warm, _ = _loop._select_effects(
         physics, candidates, None, None, LoopSettings(max_candidates=2), 1.0
     )
     assert fitted == candidates[:2] and effects == () and warm == {}

@@ -143,7 +143,10 @@ class LoopResult:
     ``"final"``, ``"final_with_delta"``) to its cross-validated RMSE, ``chosen`` is the
     key of the lowest; ``failures`` one line per fit that failed; ``notes`` what the loop
     decided not to use and why; ``timings`` the wall time of each stage in seconds (the
-    stages are logged as they run, see :mod:`~sk_offwhite.loop._progress`).
+    stages are logged as they run, see :mod:`~sk_offwhite.loop._progress`); ``set_fits``
+    each model of the ``selection`` trail fitted on the whole estimation record, by its
+    label (``None`` where that fit failed), so that every structural step can be scored
+    on validation data (the report does).
     """
 
     physics: object
@@ -166,6 +169,7 @@ class LoopResult:
     failures: list = field(default_factory=list)
     notes: list = field(default_factory=list)
     timings: dict = field(default_factory=dict)
+    set_fits: dict = field(default_factory=dict)
 
     @property
     def best(self) -> GreyBoxSparseRegressor:
@@ -236,19 +240,20 @@ def _cv_rmse(est, u, z, settings: LoopSettings) -> float:
     return float(-np.mean(scores))
 
 
-def _set_cv(board, effects, warm, u, z, settings, failures) -> float:
-    """CV RMSE of an effect set, each fold started from the set's own fit on the whole
-    record (:func:`fit_continued` from ``warm``), the model that would be kept: an effect
-    may move the declared parameters far (a sensor calibration rescales the levels the
-    outflow laws act on), and folds started from the declared physics' fit would then
-    judge the set from a start that belongs to another model."""
+def _set_cv(board, effects, warm, u, z, settings, failures):
+    """CV RMSE of an effect set and its fit on the whole record (``None`` if that failed).
+
+    Each fold starts from that fit (:func:`fit_continued` from ``warm``), the model that
+    would be kept: an effect may move the declared parameters far (a sensor calibration
+    rescales the levels the outflow laws act on), and folds started from the declared
+    physics' fit would then judge the set from a start that belongs to another model."""
     model = board.model(effects, warm)
     label = "effects " + _label(effects)
     fitted = _attempt(failures, label, fit_continued, _estimator(model, settings), u, z,
                       settings.horizon)  # fmt: skip
     if fitted is not None:
         model = warm_physics(model, fitted)
-    return _cv_rmse(_estimator(model, settings, cv=True), u, z, settings)
+    return _cv_rmse(_estimator(model, settings, cv=True), u, z, settings), fitted
 
 
 def _attempt(failures: list, label: str, function, *args):
@@ -409,8 +414,8 @@ def _forward(board, ranked, u, z, settings, base_rmse, failures):
                 continue
             label = "effects " + " + ".join(e.name for e in (*current, effect))
             logger.info("  %s", label)
-            starts = _starts(steps[-1][1], effect, params)
-            fitted = _best_of(board, (*current, effect), starts, u, z, settings, failures)
+            warm = {**steps[-1][1], **_own(params, effect)}
+            fitted = _best_of(board, (*current, effect), [warm], u, z, settings, failures)
             if fitted is not None:
                 trials.append((fitted[0], effect, fitted[1]))
         if not trials:
@@ -476,8 +481,9 @@ def _select_effects(
     A set's effects are composed in the order of the single fits; with ``share_programs``
     all sets are fitted on one :class:`~sk_offwhite.loop._switchboard.Switchboard`.
     Returns the chosen effects (in that order), the CV trail (starting with
-    ``declared_cv``, computed when ``None``), the single-fit RMSEs and the effects' fitted
-    parameters (the start of the final fit).
+    ``declared_cv``, computed when ``None``), the single-fit RMSEs, the effects' fitted
+    parameters (the start of the final fit) and each set's fit on the whole record by
+    the trail's labels.
     """
     failures = [] if failures is None else failures
     if declared_cv is None:
@@ -491,20 +497,23 @@ def _select_effects(
     singles = [(c.effect.name, r) for r, c, _ in ranked]
     steps = _forward(board, ranked, u, z, settings, base_rmse, failures)
     steps = _by_size(steps + _nested(ranked, base_rmse, settings))
-    trail = [("declared physics", declared_cv)]
+    trail, fits = [("declared physics", declared_cv)], {}
     for k, (effects, warm, _) in enumerate(steps, 1):
         logger.info("  CV of %s (%d of %d)", _label(effects), k, len(steps))
-        score = _set_cv(board, effects, warm, u, z, settings, failures)
+        score, fits[_label(board.ordered(effects))] = _set_cv(
+            board, effects, warm, u, z, settings, failures
+        )
         trail.append((_label(board.ordered(effects)), score))
     k = _smallest_within([s for _, s in trail], settings.tolerance)
     if k == 0 or trail[k][1] > (1.0 - settings.min_gain) * trail[0][1]:
-        return (), trail, singles, {}
+        return (), trail, singles, {}, fits
     chosen, warm, _ = steps[k - 1]
-    chosen, warm, rows = _swap(board, ranked, (chosen, warm, trail[k][1]), u, z, settings, failures)
-    return board.ordered(chosen), trail + rows, singles, warm
+    chosen, warm, rows = _swap(board, ranked, (chosen, warm, trail[k][1]), u, z, settings,
+                               failures, fits)  # fmt: skip
+    return board.ordered(chosen), trail + rows, singles, warm, fits
 
 
-def _swap(board, ranked, chosen, u, z, settings, failures):
+def _swap(board, ranked, chosen, u, z, settings, failures, fits):
     """Stepwise refinement of the chosen set: each other candidate of the ``beam`` added to
     it (while it has fewer than ``max_effects``) or exchanged for one of its effects,
     started from the set's parameters. A move whose fit lowers the estimation RMSE (by
@@ -513,7 +522,8 @@ def _swap(board, ranked, chosen, u, z, settings, failures):
     in each other's company, reached through another order (a nonlinear sensor that needs
     the levels an overflow leaves).
 
-    Returns the effects, their parameters and the CV trail rows of the moves tried.
+    Returns the effects, their parameters and the CV trail rows of the moves tried (their
+    fits on the whole record are added to ``fits``).
     """
     effects, warm, cv = chosen
     base = _attempt(failures, "effects " + _label(effects), _quick_fit, board, effects, warm,
@@ -522,12 +532,15 @@ def _swap(board, ranked, chosen, u, z, settings, failures):
         return effects, warm, []
     rows, best = [], (effects, warm, (1.0 - settings.min_gain) * cv)
     for trial, starts, bar in _moves(effects, warm, ranked, base[0], settings):
-        logger.info("  stepwise: %s", _label(trial))
+        label = _label(board.ordered(trial))
+        if label in fits:  # cross-validated already, and not better by min_gain
+            continue
+        logger.info("  stepwise: %s", label)
         fitted = _best_of(board, trial, starts, u, z, settings, failures)
         if fitted is None or not fitted[0] < bar:
             continue
-        score = _set_cv(board, trial, fitted[1], u, z, settings, failures)
-        rows.append((_label(board.ordered(trial)), score))
+        score, fits[label] = _set_cv(board, trial, fitted[1], u, z, settings, failures)
+        rows.append((label, score))
         if score < best[2]:
             best = (trial, fitted[1], score)
     return best[0], best[1], rows
@@ -535,8 +548,14 @@ def _swap(board, ranked, chosen, u, z, settings, failures):
 
 def _moves(effects, warm, ranked, rmse, settings):
     """``(effects, starts, RMSE to beat)`` of each addition and exchange of the beam's
-    other candidates (see :func:`_starts`)."""
-    pool = [(c.effect, p) for r, c, p in ranked[: settings.beam] if c.effect not in effects]
+    other named effects (see :func:`_starts`). Promoted dictionary terms are left to
+    forward selection, where they must beat a named effect by ``tolerance``: a term can
+    always absorb a little more, and would take the place of the effect it resembles."""
+    pool = [
+        (c.effect, p)
+        for r, c, p in ranked[: settings.beam]
+        if c.effect not in effects and not isinstance(c.effect, DictionaryTerm)
+    ]
     for effect, params in pool:
         if len(effects) < settings.max_effects:
             gain = (1.0 - settings.min_gain) * rmse
@@ -666,7 +685,7 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
             )
     with clock.stage("effect selection"):
         candidates = _candidates(start, library, hypotheses, facts, run, u, settings)
-        effects, trail, singles, warm = _select_effects(
+        effects, trail, singles, warm, set_fits = _select_effects(
             start, candidates, u, z, settings, _rmse(run.outputs, z), failures, declared_cv
         )
         notes += _equivalents(effects, singles, settings.tolerance)
@@ -707,6 +726,7 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
         failures,
         notes,
         clock.seconds,
+        {"declared physics": baseline, **set_fits},
     )
 
 

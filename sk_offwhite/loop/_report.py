@@ -14,7 +14,7 @@ import numpy as np  # noqa: E402
 
 from ..certify import UnidentifiableWarning, identifiability  # noqa: E402
 from ._loop import analyse_model  # noqa: E402
-from ._scoring import MODEL_LABELS  # noqa: E402
+from ._scoring import MODEL_LABELS, _protocol_metrics  # noqa: E402
 
 __all__ = ["write_report"]
 
@@ -123,9 +123,16 @@ def _candidate_lines(result) -> list[str]:
     return lines
 
 
-def _selection_lines(result) -> list[str]:
-    lines = ["| model | cross-validated RMSE (estimation record) |", "|---|---|"]
-    lines += [f"| {name} | {score:.4f} |" for name, score in result.selection]
+def _selection_lines(result, records: dict) -> list[str]:
+    """The CV trail of the effect sets, each also scored on the other records (its fit on
+    the estimation record, ``init_window`` protocol): what every structural step did."""
+    others = [name for name in records if name != "estimation"]
+    head = "| model | cross-validated RMSE (estimation record) |"
+    lines = [head + "".join(f" {n} RMSE (init_window) |" for n in others)]
+    lines += ["|---|---|" + "---|" * len(others)]
+    for name, score in result.selection:
+        cells = [_set_score(result.set_fits.get(name), *records[n]) for n in others]
+        lines.append(f"| {name} | {score:.4f} |" + "".join(f" {c} |" for c in cells))
     values = result.final.parameters_
     chosen = [
         f"- `{e.name}`: {e.describe(result.physics.state_names, _names(result), values)}; "
@@ -133,6 +140,13 @@ def _selection_lines(result) -> list[str]:
         for e in result.effects
     ]
     return lines + ["", "Effects added:", ""] + (chosen or ["- none improved the CV score"])
+
+
+def _set_score(est, u, z, init_window: int = 50) -> str:
+    """RMSE of a set's fit on a record (``init_window`` protocol), or a dash."""
+    if est is None:
+        return "—"
+    return f"{_protocol_metrics(est, u, z, 'init_window', init_window)['overall']['rmse']:.4f}"
 
 
 def _choice_lines(result) -> list[str]:
@@ -218,7 +232,7 @@ def write_report(result, rows, records: dict, directory, *, title: str, notes=()
     lines += [f"- {note}" for note in result.notes] + ([""] if result.notes else [])
     lines += ["![correction](correction.png)", ""] if has_delta_fig else []
     lines += ["## Effects tried and added", ""] + _candidate_lines(result) + [""]
-    lines += _selection_lines(result) + [""]
+    lines += _selection_lines(result, records) + [""]
     lines += ["## Parameters", ""] + _parameter_lines(result.final, *records["estimation"])
     if result.with_delta is not None:
         lines += ["## Sparse correction on the declared physics", ""]
