@@ -375,7 +375,11 @@ class Friction(AdditiveEffect):
     (:math:`w > 0`, in the velocity's units: how sharp the sign is; the loop starts it at
     1 % of the velocity's RMS, so it follows the data's units) and, when
     ``stribeck_velocity`` (:math:`v_s`) is given, ``{name}_stribeck``
-    (:math:`F_s \ge 0`). ``fit_width=False`` keeps :math:`w` fixed.
+    (:math:`F_s \ge 0`). ``fit_width=False`` keeps :math:`w` fixed. The fitted width stays
+    above ``min_width`` (default: 1 % of the starting width): at a width far below every
+    speed on the record the sign is flat in :math:`w`, and a fit that overshoots there
+    cannot come back (measured on a drive: stuck at the old floor of 1e-12 with a 2 %
+    worse fit, from starts 10x too wide or a Coulomb level 300x too small).
     """
 
     def __init__(
@@ -387,11 +391,16 @@ class Friction(AdditiveEffect):
         velocity: int | None = None,
         stribeck_velocity: float | None = None,
         fit_width: bool = True,
+        min_width: float | None = None,
         name: str = "friction",
     ):
         if not width > 0:
             raise ValueError(f"width must be positive, got {width!r}.")
+        min_width = width / 100.0 if min_width is None else float(min_width)
+        if not 0 < min_width <= width:
+            raise ValueError(f"min_width must lie in (0, width], got {min_width!r}.")
         self.state, self.coulomb, self.width = int(state), float(coulomb), float(width)
+        self.min_width = min_width
         self.velocity = self.state if velocity is None else int(velocity)
         self.stribeck_velocity = None if stribeck_velocity is None else float(stribeck_velocity)
         self.fit_width, self.name = bool(fit_width), name
@@ -399,7 +408,9 @@ class Friction(AdditiveEffect):
     def parameters(self) -> dict[str, Parameter]:
         params = {
             f"{self.name}_coulomb": Parameter(self.coulomb, (0.0, None)),
-            f"{self.name}_width": Parameter(self.width, (1e-12, None), fixed=not self.fit_width),
+            f"{self.name}_width": Parameter(
+                self.width, (self.min_width, None), fixed=not self.fit_width
+            ),
         }
         if self.stribeck_velocity is not None:
             params[f"{self.name}_stribeck"] = Parameter(0.0, (0.0, None))

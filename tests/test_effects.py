@@ -159,3 +159,18 @@ def test_separate_models_compose_the_candidates_in_their_order():
     assert board.ordered([second, first]) == separate.ordered([second, first]) == (first, second)
     with pytest.raises(ValueError, match="not among the candidates"):
         separate.model([Leak(0)])
+
+
+def test_friction_width_keeps_a_floor_so_a_bad_start_still_finds_the_friction():
+    assert Friction(1, width=0.05).parameters()["friction_width"].bounds == (5e-4, None)
+    with pytest.raises(ValueError, match="min_width"):
+        Friction(1, width=0.05, min_width=0.1)
+    data = make_coulomb_drive(random_state=0, n_samples=2000)
+    rates = data.hidden_effect["rates"]
+    # 10x too wide and a Coulomb level 300x too small: this start used to end at width 1e-12
+    start = Friction(1, coulomb=0.01, width=0.05, name="friction_v")
+    model = augment(data.physics, start, Bias(1, name="bias_v"))
+    fitted = GreyBoxSparseRegressor(model, horizon=128).fit(data.u, data.z).parameters_
+    assert fitted["friction_v_coulomb"] == pytest.approx(rates["coulomb"], rel=0.05)
+    assert fitted["friction_v_width"] == pytest.approx(rates["width"], rel=0.1)
+    assert fitted["bias_v_value"] == pytest.approx(rates["offset"], rel=0.05)

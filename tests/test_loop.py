@@ -31,7 +31,9 @@ from sk_offwhite.loop import (
     write_report,
 )
 from sk_offwhite.loop._hypotheses import feature_variables
+from sk_offwhite.loop._loop import _set_cv, _swap
 from sk_offwhite.loop._progress import StageClock
+from sk_offwhite.loop._switchboard import effect_sets
 
 
 @pytest.fixture(scope="module")
@@ -245,3 +247,22 @@ def test_the_tail_score_finds_the_leak():
     tail = -held_out_rmse(50)(declared, data.u[300:], data.z[300:])
     assert result.selection[0][1] == pytest.approx(tail, rel=1e-6)
     assert result.selection[-1][1] < 0.5 * tail
+
+
+def test_stepwise_drops_an_effect_that_adds_nothing():
+    """A chosen set carrying a redundant effect (an output offset on a record without one)
+    is refined to the smaller set whose CV error is within ``tolerance``, and the trail
+    gets the row of the set it tried."""
+    data = make_leaky_tank(n_samples=400, random_state=1)
+    settings = LoopSettings(n_folds=2, max_iter=100, fit_delta=False)
+    effects = (Leak(0, name="leak_x"), OutputOffset(0, name="offset_x"))
+    board = effect_sets(data.physics, effects, shared=False)
+    failures, fits = [], {}
+    cv, _ = _set_cv(board, effects, {}, data.u, data.z, settings, failures)
+    kept, params, rows = _swap(
+        board, [], (effects, {}, cv), data.u, data.z, settings, failures, fits
+    )
+    assert [e.name for e in kept] == ["leak_x"] and failures == []
+    assert [label for label, _ in rows] == ["offset_x", "leak_x"]
+    assert dict(rows)["leak_x"] <= (1 + settings.tolerance) * cv
+    assert "offset_x_offset" not in params

@@ -515,12 +515,15 @@ def _select_effects(
 
 def _swap(board, ranked, chosen, u, z, settings, failures, fits):
     """Stepwise refinement of the chosen set: each other candidate of the ``beam`` added to
-    it (while it has fewer than ``max_effects``) or exchanged for one of its effects,
-    started from the set's parameters. A move whose fit lowers the estimation RMSE (by
-    ``min_gain`` for an addition) is cross-validated; the best is kept when its CV RMSE is
-    lower by ``min_gain``. Greedy forward selection misses a set whose members help only
-    in each other's company, reached through another order (a nonlinear sensor that needs
-    the levels an overflow leaves).
+    it (while it has fewer than ``max_effects``) or exchanged for one of its effects, and
+    each of its effects dropped, started from the set's parameters. An addition or
+    exchange whose fit lowers the estimation RMSE (by ``min_gain`` for an addition) is
+    cross-validated, and the best is kept when its CV RMSE is lower by ``min_gain``.
+    Greedy forward selection misses a set whose members help only in each other's
+    company, reached through another order (a nonlinear sensor that needs the levels an
+    overflow leaves). When no move improves, the best smaller set whose CV RMSE is within
+    ``tolerance`` is kept: an effect whose fitted parameters make it vanish, or that
+    another effect made redundant, is not carried into the final model.
 
     Returns the effects, their parameters and the CV trail rows of the moves tried (their
     fits on the whole record are added to ``fits``).
@@ -531,6 +534,7 @@ def _swap(board, ranked, chosen, u, z, settings, failures, fits):
     if base is None:
         return effects, warm, []
     rows, best = [], (effects, warm, (1.0 - settings.min_gain) * cv)
+    lighter = (effects, warm, (1.0 + settings.tolerance) * cv)
     for trial, starts, bar in _moves(effects, warm, ranked, base[0], settings):
         label = _label(board.ordered(trial))
         if label in fits:  # cross-validated already, and not better by min_gain
@@ -543,14 +547,27 @@ def _swap(board, ranked, chosen, u, z, settings, failures, fits):
         rows.append((label, score))
         if score < best[2]:
             best = (trial, fitted[1], score)
-    return best[0], best[1], rows
+        elif len(trial) < len(effects) and score <= lighter[2]:
+            lighter = (trial, fitted[1], score)
+    chosen = best if best[0] is not effects else lighter
+    return chosen[0], chosen[1], rows
 
 
 def _moves(effects, warm, ranked, rmse, settings):
     """``(effects, starts, RMSE to beat)`` of each addition and exchange of the beam's
-    other named effects (see :func:`_starts`). Promoted dictionary terms are left to
-    forward selection, where they must beat a named effect by ``tolerance``: a term can
-    always absorb a little more, and would take the place of the effect it resembles."""
+    other named effects (see :func:`_starts`), then of each removal (no RMSE to beat).
+    Promoted dictionary terms are left to forward selection, where they must beat a named
+    effect by ``tolerance``: a term can always absorb a little more, and would take the
+    place of the effect it resembles."""
+    yield from _additions_and_exchanges(effects, warm, ranked, rmse, settings)
+    if len(effects) > 1:
+        for out in effects:
+            kept = {n: p for n, p in warm.items() if n not in out.parameters()}
+            yield tuple(e for e in effects if e != out), [kept], np.inf
+
+
+def _additions_and_exchanges(effects, warm, ranked, rmse, settings):
+    """The additions and exchanges of :func:`_moves`."""
     pool = [
         (c.effect, p)
         for r, c, p in ranked[: settings.beam]
