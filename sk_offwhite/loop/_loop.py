@@ -18,8 +18,10 @@ r"""The closed loop: residual -> evidence -> named effect -> refit -> before/aft
    most while it lowers it by ``min_gain`` (when no candidate helps alone, pairs of the best
    are tried: effects such as Coulomb friction and a force offset only help together). The
    sets of that order, and the nested sets of the candidates that helped alone in the order
-   of their gain, are cross-validated; the smallest within ``tolerance`` of the best is
-   kept if it beats the declared physics by ``min_gain``.
+   of their gain, are cross-validated, each from its own fit on the whole record; the
+   smallest within ``tolerance`` of the best is kept if it beats the declared physics by
+   ``min_gain``, then refined stepwise (each other named candidate added or exchanged for
+   one of its effects, each of its effects dropped; see :func:`_swap`).
 5. Refit the augmented physics and, with ``fit_delta``, the augmented physics with a
    sparse :math:`\delta` (:math:`\gamma` chosen by CV on the support path).
 6. **Never worse.** Every final model is cross-validated the same way; ``result.chosen``
