@@ -32,7 +32,9 @@ from ._optim import (
     SolverResult,
     _anchored,
     _omega,
+    damped_diagonal,
     free_residuals,
+    held_at_bound,
     lm_loop,
     majorised_cost,
 )
@@ -196,19 +198,25 @@ def _linearise(free, problem, model, layout, plan: Colouring) -> _State:
     )
 
 
-def _damped_step(state: _State, damping: float, plan: Colouring) -> np.ndarray:
-    r"""Solution of :math:`(J^TJ + \mu D)s = -J^Tr` by eliminating the window starts: their
+def _damped_step(state: _State, damping: float, plan: Colouring, moving) -> np.ndarray:
+    r"""Solution of :math:`(J^TJ + \mu D)s = -J^Tr` (variables not ``moving`` stay; see
+    :func:`~sk_offwhite._optim.damped_diagonal`) by eliminating the window starts: their
     block is banded (one window couples only to its neighbours), its LU has no fill, and
     the globals solve the dense Schur complement."""
-    diag_g, diag_l = np.diag(state.normal_gg), state.normal_ll.diagonal()
-    floor = 1e-9 * max(float(np.max(np.concatenate([diag_g, diag_l]), initial=0.0)), 1e-30)
-    a_gg = state.normal_gg + np.diag(damping * (diag_g + floor))
-    a_ll = (state.normal_ll + sp.diags(damping * (diag_l + floor))).tocsc()
-    b_g, b_l = -state.gradient[plan.glob], -state.gradient[plan.local]
+    keep_g, keep_l = moving[plan.glob].astype(float), moving[plan.local].astype(float)
+    normal_gg = state.normal_gg * np.outer(keep_g, keep_g)
+    normal_gl = state.normal_gl * np.outer(keep_g, keep_l)
+    normal_ll = sp.diags(keep_l) @ state.normal_ll @ sp.diags(keep_l)
+    diag = np.empty(state.free.shape[0])
+    diag[plan.glob], diag[plan.local] = np.diag(normal_gg), normal_ll.diagonal()
+    damped = damped_diagonal(diag, damping, moving, np)
+    a_gg = normal_gg + np.diag(damped[plan.glob])
+    a_ll = (normal_ll + sp.diags(damped[plan.local])).tocsc()
+    rhs = np.where(moving, -state.gradient, 0.0)
     lu = splu(a_ll, permc_spec="NATURAL")
-    coupled, alone = lu.solve(np.ascontiguousarray(state.normal_gl.T)), lu.solve(b_l)
-    schur = a_gg - state.normal_gl @ coupled
-    step_g = np.linalg.solve(schur, b_g - state.normal_gl @ alone)
+    coupled, alone = lu.solve(np.ascontiguousarray(normal_gl.T)), lu.solve(rhs[plan.local])
+    schur = a_gg - normal_gl @ coupled
+    step_g = np.linalg.solve(schur, rhs[plan.glob] - normal_gl @ alone)
     step = np.empty(state.free.shape[0])
     step[plan.glob], step[plan.local] = step_g, alone - coupled @ step_g
     return step
@@ -216,8 +224,10 @@ def _damped_step(state: _State, damping: float, plan: Colouring) -> np.ndarray:
 
 def _trial(state: _State, damping, problem, model, layout, plan: Colouring):
     """Damped step, projected on the box, and its cost."""
-    step = _damped_step(state, damping, plan)
-    candidate = np.clip(state.free + step, np.asarray(problem.lower), np.asarray(problem.upper))
+    lower, upper = np.asarray(problem.lower), np.asarray(problem.upper)
+    moving = ~held_at_bound(state.free, state.gradient, lower, upper)
+    step = _damped_step(state, damping, plan, moving)
+    candidate = np.clip(state.free + step, lower, upper)
     cost = _cost(jnp.asarray(candidate), state.anchor, problem, model, layout)
     return candidate, float(cost)
 

@@ -117,3 +117,41 @@ def test_creep_is_told_from_progress():
     assert _creep(list(np.linspace(2.0, 1.0, 30))) == ""  # still descending
     assert _creep([1.0] * 10) == ""  # too short to tell
     assert "direction the data do not determine" in _creep(list(1.0 + 1e-7 * np.arange(30)[::-1]))
+
+
+def _two_input_record():
+    """x+ = 0.5 x + u1 - 0.3 u2 with u2 strongly correlated with u1, noise-free."""
+    rng = np.random.default_rng(1)
+    u1 = rng.normal(size=300)
+    u = np.column_stack([u1, 0.9 * u1 + 0.3 * rng.normal(size=300)])
+    x, states = 0.0, []
+    for u_k in u:
+        states.append(x)
+        x = 0.5 * x + u_k[0] - 0.3 * u_k[1]
+    return u, np.asarray(states)[:, None]
+
+
+def _bounded_physics(scale: float):
+    """The plant with the second gain declared non-negative, in units ``scale`` of u2."""
+
+    def step(x, u, theta):
+        return jnp.array([theta["a"] * x[0] + theta["b"] * u[0] + theta["c"] * u[1] / scale])
+
+    params = {"a": Parameter(0.3), "b": Parameter(0.5), "c": Parameter(0.1 * scale, (0.0, None))}
+    return PhysicsModel(step, [0], params, 1, 2, x0=[0.0])
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e-3, 1e3])
+def test_a_parameter_held_at_its_bound_leaves_the_others_free_to_converge(scale):
+    # the unconstrained optimum has c = -0.3 < 0: c must stop at its bound and (a, b) move to
+    # the best fit with c = 0; clipping an unconstrained step instead moved a and b as if c
+    # had gone negative, and the run alternated rejected and tiny accepted steps
+    u, z = _two_input_record()
+    est = GreyBoxSparseRegressor(_bounded_physics(scale), max_iter=100).fit(u, z)
+    assert est.converged_ and est.n_iter_ < 40, (est.n_iter_, est.solver_message_)
+    assert est.parameters_["c"] == 0.0
+    reference = GreyBoxSparseRegressor(
+        _bounded_physics(scale).with_parameters(c=Parameter(0.0, fixed=True)), max_iter=100
+    ).fit(u, z)
+    for name in ("a", "b"):
+        assert est.parameters_[name] == pytest.approx(reference.parameters_[name], rel=1e-6)
