@@ -21,7 +21,11 @@ from sklearn.model_selection import KFold, check_cv
 
 from ._estimator import GreyBoxSparseRegressor
 
-__all__ = ["GammaPath", "fit_gamma_path", "gamma_grid"]
+__all__ = ["DIVERGED_FACTOR", "GammaPath", "fit_gamma_path", "gamma_grid"]
+
+DIVERGED_FACTOR = 10.0
+"""A held-out simulation that is not finite scores, in the output's units, this many
+standard deviations of the measured block (ten times worse than predicting its mean)."""
 
 
 def gamma_grid(gamma_max: float, n_gammas: int = 8, eps: float = 1e-6) -> np.ndarray:
@@ -72,6 +76,11 @@ class GammaPath:
     estimator : GreyBoxSparseRegressor
         The estimator passed in, fitted at the chosen :math:`\gamma` (without ``cv``: at
         the last one).
+    cv_rmse : ndarray of shape (n_gammas, n_folds) or None
+        The same held-out errors in the output's units (RMS over outputs and samples, as
+        :func:`~sk_offwhite.loop.held_out_rmse` scores a block); a diverged simulation
+        scores :data:`DIVERGED_FACTOR` standard deviations of its block, a failed fit
+        ``inf``.
     """
 
     gammas: np.ndarray
@@ -82,6 +91,7 @@ class GammaPath:
     best_index: int | None
     feature_names: list
     estimator: GreyBoxSparseRegressor = field(repr=False)
+    cv_rmse: np.ndarray | None = None
 
     @property
     def supports(self) -> np.ndarray:
@@ -127,15 +137,23 @@ class GammaPath:
         return "\n".join(lines)
 
 
-def _normalised_rmse(est: GreyBoxSparseRegressor, u, z, init_window: int) -> float:
-    """RMS free-run error of one block after ``init_window`` samples, in output stds."""
+def _held_out_errors(est: GreyBoxSparseRegressor, u, z, init_window: int) -> np.ndarray:
+    """RMS free-run error of one block after ``init_window`` samples: in output standard
+    deviations (``inf`` if it diverged) and in the output's units (see ``cv_rmse``)."""
     z = np.asarray(z, float).reshape(len(u), -1)
     with np.errstate(over="ignore", invalid="ignore"):
         z_init = z[:init_window] if init_window else None
         simulated = np.asarray(est.predict(u, z_init=z_init)).reshape(z.shape)
-        error = (simulated - z)[init_window:] / est.output_scale_
-        value = float(np.sqrt(np.mean(error**2)))
-    return value if np.isfinite(value) else np.inf
+        error = (simulated - z)[init_window:]
+        values = np.sqrt([np.mean((error / est.output_scale_) ** 2), np.mean(error**2)])
+    if np.all(np.isfinite(values)):
+        return values
+    return np.array([np.inf, DIVERGED_FACTOR * float(np.std(z))])
+
+
+def _normalised_rmse(est: GreyBoxSparseRegressor, u, z, init_window: int) -> float:
+    """RMS free-run error of one block after ``init_window`` samples, in output stds."""
+    return float(_held_out_errors(est, u, z, init_window)[0])
 
 
 def _blocks(index: np.ndarray) -> list[np.ndarray]:
@@ -144,22 +162,23 @@ def _blocks(index: np.ndarray) -> list[np.ndarray]:
 
 
 def _fold_errors(est, u, z, train, test, gammas, init_window) -> np.ndarray:
-    """Held-out error at every :math:`\\gamma` of one fold (fits on ``train`` only)."""
+    """Held-out errors at every :math:`\\gamma` of one fold (fits on ``train`` only), shape
+    ``(n_gammas, 2)``: in output standard deviations and in the output's units."""
     errors = []
     for gamma in gammas:
         try:
             est.set_params(gamma=gamma).fit(u[train], z[train], sample_index=train)
         except ValueError:
-            errors.append(np.inf)
+            errors.append([np.inf, np.inf])
             continue
-        scores = [_block_error(est, u, z, block, init_window) for block in _blocks(test)]
-        errors.append(float(np.sqrt(np.mean(np.square(scores)))))
+        scores = [_block_errors(est, u, z, block, init_window) for block in _blocks(test)]
+        errors.append(np.sqrt(np.mean(np.square(scores), axis=0)))
     return np.asarray(errors)
 
 
-def _block_error(est, u, z, block, init_window) -> float:
+def _block_errors(est, u, z, block, init_window) -> np.ndarray:
     window = min(init_window, len(block) // 2)
-    return _normalised_rmse(est, u[block], z[block], window)
+    return _held_out_errors(est, u[block], z[block], window)
 
 
 def _choose(cv_error: np.ndarray, gammas: np.ndarray, one_standard_error: bool) -> int:
@@ -261,14 +280,14 @@ def fit_gamma_path(
         values, gamma_max = gamma_grid(estimator.gamma_max_, n_gammas, eps), estimator.gamma_max_
     else:
         values, gamma_max = _check_gammas(gammas), np.nan
-    cv_error = None
+    cv_error = cv_rmse = None
     if cv is not None:
         template, window = clone(estimator), _init_window(estimator, init_window, len(u_arr))
         folds = [
             _fold_errors(clone(template), u_arr, z_arr, train, test, values, window)
             for train, test in _splits(cv, len(u_arr))
         ]
-        cv_error = np.stack(folds, axis=1)
+        cv_error, cv_rmse = np.moveaxis(np.stack(folds, axis=1), -1, 0)
     warm_start = estimator.warm_start
     try:
         snapshots, train_error = _whole_record_path(estimator, u_arr, z_arr, values, sample_index)
@@ -276,7 +295,7 @@ def fit_gamma_path(
         estimator.set_params(warm_start=warm_start)
     failed = np.array([snap is None for snap in snapshots])
     if cv_error is not None:
-        cv_error[failed] = np.inf
+        cv_error[failed], cv_rmse[failed] = np.inf, np.inf
     best = None if cv_error is None else _choose(cv_error, values, one_standard_error)
     last = int(np.flatnonzero(~failed)[-1])
     vars(estimator).update(vars(snapshots[last if best is None else best]))
@@ -284,7 +303,15 @@ def fit_gamma_path(
     shape = estimator.coef_.shape
     coefs = np.stack([np.full(shape, np.nan) if s is None else s.coef_ for s in snapshots])
     return GammaPath(
-        values, gamma_max, coefs, train_error, cv_error, best, estimator.feature_names_, estimator
+        values,
+        gamma_max,
+        coefs,
+        train_error,
+        cv_error,
+        best,
+        estimator.feature_names_,
+        estimator,
+        cv_rmse,
     )
 
 

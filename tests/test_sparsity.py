@@ -179,3 +179,28 @@ def test_a_warm_fit_never_returns_a_larger_and_worse_solution():
     assert _no_worse_than(stage, start, sparser) is sparser  # fewer terms may cost fit
     better = SolverResult(np.array([0.0, 0.1, 0.1, 0.0]), 1.0, np.ones(2), 5, True, "ok")
     assert _no_worse_than(stage, start, better) is better
+
+
+def test_path_cv_in_output_units_is_what_refitting_the_folds_scores(record):
+    # the loop scores a model with delta from the path's own fold fits instead of fitting
+    # the folds again at the chosen gamma: the two must be the same number
+    from sklearn.base import clone
+    from sklearn.model_selection import cross_val_score
+
+    from sk_offwhite.loop import held_out_rmse
+
+    u, z = record
+    folds = list(KFold(3).split(u))
+    path = _quiet(fit_gamma_path, _estimator(), u, z, n_gammas=3, cv=folds, init_window=20)
+    refitted = clone(path.estimator).set_params(gamma=path.best_gamma)
+    scores = _quiet(
+        cross_val_score,
+        refitted,
+        u,
+        z,
+        cv=folds,
+        scoring=held_out_rmse(20),
+        params={"sample_index": np.arange(len(u))},
+    )
+    assert path.cv_rmse.shape == path.cv_error.shape == (3, 3)
+    np.testing.assert_allclose(path.cv_rmse[path.best_index], -scores, rtol=1e-12)

@@ -585,8 +585,12 @@ def _additions_and_exchanges(effects, warm, ranked, rmse, settings):
             yield trial, _starts(kept, effect, params), rmse
 
 
-def _delta_cv(est, u, z, settings) -> float:
-    """CV RMSE of a fitted model with δ at its chosen γ, scored as the trail is."""
+def _delta_cv(est, path: GammaPath | None, u, z, settings) -> float:
+    """CV RMSE of a fitted model with δ at its chosen γ, scored as the trail is: the mean
+    over folds of the path's own fits at that γ (the same fits on the same blocks, scored
+    the same way), or, without a path (a single γ), the folds fitted now."""
+    if path is not None and path.cv_rmse is not None:
+        return float(np.mean(path.cv_rmse[path.best_index]))
     template = clone(est).set_params(horizon=settings.cv_horizon)
     return _cv_rmse(template, u, z, settings)
 
@@ -638,7 +642,8 @@ def _scored_delta(key, physics, library, u, z, settings, failures, evidence=None
     )
     if fitted is None:
         return None, None, np.inf
-    cv = _attempt(failures, f"CV of {MODEL_LABELS[key]}", _delta_cv, fitted[0], u, z, settings)
+    label = f"CV of {MODEL_LABELS[key]}"
+    cv = _attempt(failures, label, _delta_cv, fitted[0], fitted[1], u, z, settings)
     return fitted[0], fitted[1], np.inf if cv is None else cv
 
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._path import DIVERGED_FACTOR
 from .._validation import check_record
 from ..diagnose import simulation_metrics
 
@@ -22,11 +23,6 @@ MODEL_LABELS = {
     "final": "augmented physics",
     "final_with_delta": "augmented physics + δ",
 }
-
-
-DIVERGED_FACTOR = 10.0
-"""A held-out simulation that is not finite scores this many standard deviations of the
-measured block (ten times worse than predicting its mean)."""
 
 
 def held_out_rmse(init_window: int):
