@@ -11,11 +11,13 @@ import jax.numpy as jnp
 import numpy as np
 import pysindy as ps
 import pytest
-from sklearn.model_selection import KFold
+from sklearn.base import clone
+from sklearn.model_selection import KFold, cross_val_score
 
 from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel, fit_gamma_path, gamma_grid
 from sk_offwhite._optim import SolverResult
 from sk_offwhite._sparsity import _no_worse_than, _Stage
+from sk_offwhite.loop import held_out_rmse
 
 TRUE = {"a": 0.8, "b": 0.5, "c": -0.15}
 N_SAMPLES = 300
@@ -184,11 +186,6 @@ def test_a_warm_fit_never_returns_a_larger_and_worse_solution():
 def test_path_cv_in_output_units_is_what_refitting_the_folds_scores(record):
     # the loop scores a model with delta from the path's own fold fits instead of fitting
     # the folds again at the chosen gamma: the two must be the same number
-    from sklearn.base import clone
-    from sklearn.model_selection import cross_val_score
-
-    from sk_offwhite.loop import held_out_rmse
-
     u, z = record
     folds = list(KFold(3).split(u))
     path = _quiet(fit_gamma_path, _estimator(), u, z, n_gammas=3, cv=folds, init_window=20)

@@ -588,7 +588,8 @@ def _additions_and_exchanges(effects, warm, ranked, rmse, settings):
 def _delta_cv(est, path: GammaPath | None, u, z, settings) -> float:
     """CV RMSE of a fitted model with δ at its chosen γ, scored as the trail is: the mean
     over folds of the path's own fits at that γ (the same fits on the same blocks, scored
-    the same way), or, without a path (a single γ), the folds fitted now."""
+    the same way when a block is at least twice ``init_window`` long), or, without a path
+    (a single γ), the folds fitted now."""
     if path is not None and path.cv_rmse is not None:
         return float(np.mean(path.cv_rmse[path.best_index]))
     template = clone(est).set_params(horizon=settings.cv_horizon)
