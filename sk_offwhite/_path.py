@@ -137,9 +137,11 @@ class GammaPath:
         return "\n".join(lines)
 
 
-def _held_out_errors(est: GreyBoxSparseRegressor, u, z, init_window: int) -> np.ndarray:
-    """RMS free-run error of one block after ``init_window`` samples: in output standard
-    deviations (``inf`` if it diverged) and in the output's units (see ``cv_rmse``)."""
+def held_out_errors(est: GreyBoxSparseRegressor, u, z, init_window: int) -> np.ndarray:
+    """RMS free-run error of one block after ``init_window`` samples (its initial state
+    estimated from them): in output standard deviations (``inf`` if it diverged) and in
+    the output's units (:data:`DIVERGED_FACTOR` standard deviations of ``z`` if it
+    diverged); the second is what :func:`~sk_offwhite.loop.held_out_rmse` scores."""
     z = np.asarray(z, float).reshape(len(u), -1)
     with np.errstate(over="ignore", invalid="ignore"):
         z_init = z[:init_window] if init_window else None
@@ -153,7 +155,7 @@ def _held_out_errors(est: GreyBoxSparseRegressor, u, z, init_window: int) -> np.
 
 def _normalised_rmse(est: GreyBoxSparseRegressor, u, z, init_window: int) -> float:
     """RMS free-run error of one block after ``init_window`` samples, in output stds."""
-    return float(_held_out_errors(est, u, z, init_window)[0])
+    return float(held_out_errors(est, u, z, init_window)[0])
 
 
 def _blocks(index: np.ndarray) -> list[np.ndarray]:
@@ -178,7 +180,7 @@ def _fold_errors(est, u, z, train, test, gammas, init_window) -> np.ndarray:
 
 def _block_errors(est, u, z, block, init_window) -> np.ndarray:
     window = min(init_window, len(block) // 2)
-    return _held_out_errors(est, u[block], z[block], window)
+    return held_out_errors(est, u[block], z[block], window)
 
 
 def _choose(cv_error: np.ndarray, gammas: np.ndarray, one_standard_error: bool) -> int:

@@ -9,9 +9,7 @@
 
 from __future__ import annotations
 
-import numpy as np
-
-from .._path import DIVERGED_FACTOR
+from .._path import held_out_errors
 from .._validation import check_record
 from ..diagnose import simulation_metrics
 
@@ -30,17 +28,14 @@ def held_out_rmse(init_window: int):
 
     The block's initial state is estimated from its first ``init_window`` measured samples
     (``predict(u, z_init=...)``), which are not scored: the ``init_window`` protocol applied
-    to a cross-validation block. A non-finite simulation scores
-    ``-DIVERGED_FACTOR * std(z)``, so one diverging fold ranks a model last without
-    making the mean undefined.
+    to a cross-validation block. A non-finite simulation scores ``-DIVERGED_FACTOR *
+    std(z)`` (:data:`~sk_offwhite._path.DIVERGED_FACTOR`), so one diverging fold ranks a
+    model last without making the mean undefined. The same function scores the held-out
+    blocks of :func:`~sk_offwhite.fit_gamma_path` (``GammaPath.cv_rmse``).
     """
 
     def scorer(estimator, u, z) -> float:
-        z = np.asarray(z, float).reshape(len(u), -1)
-        with np.errstate(over="ignore", invalid="ignore"):
-            simulated = estimator.predict(u, z_init=z[:init_window]).reshape(z.shape)
-            rmse = float(np.sqrt(np.mean((simulated - z)[init_window:] ** 2)))
-        return -rmse if np.isfinite(rmse) else -DIVERGED_FACTOR * float(np.std(z))
+        return -float(held_out_errors(estimator, u, z, init_window)[1])
 
     return scorer
 
