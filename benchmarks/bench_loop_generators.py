@@ -21,6 +21,7 @@ import warnings
 import jax
 
 from sk_offwhite import (
+    Backlash,
     DeadZone,
     Friction,
     InputSaturation,
@@ -32,6 +33,7 @@ from sk_offwhite import (
     Stiffness,
 )
 from sk_offwhite.datasets import (
+    make_backlash_servo,
     make_cascaded_tanks,
     make_coulomb_drive,
     make_dead_zone_motor,
@@ -65,6 +67,7 @@ SYSTEMS = {
         ("drag_omega_coefficient", "quadratic_drag"),
     ),
     "dead_zone": (make_dead_zone_motor, 800, DeadZone, ("dead_zone_u_width", "dead_zone")),
+    "backlash": (make_backlash_servo, 1000, Backlash, ("backlash_u_width", "backlash")),
     "leaky_tank": (make_leaky_tank, 600, Leak, None),
     "friction": (make_friction_oscillator, 500, Friction, None),
     "actuator": (make_saturating_actuator, 500, InputSaturation, None),

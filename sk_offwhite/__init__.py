@@ -4,6 +4,7 @@ from ._basis import RidgeBasis, compile_basis
 from ._cache import enable_compilation_cache, release_compiled_programs
 from ._effects import (
     AdditiveEffect,
+    Backlash,
     Bias,
     DeadZone,
     DictionaryTerm,
@@ -30,6 +31,7 @@ from ._splitters import SequenceSplit, SequenceWarning
 __all__ = [
     "AdditiveEffect",
     "Bias",
+    "Backlash",
     "DeadZone",
     "DictionaryTerm",
     "DivergenceWarning",

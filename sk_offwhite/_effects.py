@@ -22,10 +22,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._hidden import with_hidden_states
 from ._physics import DiscretizedStep, Parameter, PhysicsModel
 
 __all__ = [
     "AdditiveEffect",
+    "Backlash",
     "Bias",
     "DeadZone",
     "DictionaryTerm",
@@ -67,6 +69,8 @@ class Effect:
     target = "state"
     replaces_declared = False
     """Whether the effect's parameters replace declared, relaxable ones of the same name."""
+    hidden_states: tuple[str, ...] = ()
+    """Names of the hidden states the effect carries (see :mod:`sk_offwhite._hidden`)."""
 
     def parameters(self) -> dict[str, Parameter]:
         """The effect's own parameters, with initial values and bounds."""
@@ -83,6 +87,19 @@ class Effect:
     def apply_output(self, x, u, z, theta):
         """Return the output after the effect (identity by default)."""
         return z
+
+    def advance(self, hidden, u, theta):
+        """For an effect with hidden states: ``(input the declared step sees, next hidden
+        states)`` from the hidden states and the input (identity by default)."""
+        return u, hidden
+
+    def hidden_initial(self) -> tuple[float, ...]:
+        """Initial guesses of the hidden states (estimated with the initial state)."""
+        return ()
+
+    def hidden_kinds(self, input_kinds) -> tuple[str, ...]:
+        """Physical kinds of the hidden states, given the model's input kinds."""
+        return ("generic",) * len(self.hidden_states)
 
     def describe(self, state_names, output_names, values=None) -> str:
         """One line in words, naming the variables (``values``: fitted parameters, used
@@ -544,6 +561,65 @@ class DeadZone(Effect):
         return "the actuator has a dead zone: inputs smaller than a width do nothing"
 
 
+class Backlash(Effect):
+    r"""Input ``input`` drives the plant through a play of half-width :math:`w` (backlash).
+
+    The driven side's position :math:`p` is a hidden state: it stays where it is until the
+    input pushes it from one side of the play,
+
+    .. math::
+
+        p_{k+1} = \mathrm{clip}(p_k,\ u_k - w,\ u_k + w)
+        \approx p_k + \eta(u_k - w - p_k) - \eta(p_k - u_k - w),
+        \qquad \eta(a) = \frac{w}{s}\,\mathrm{sp}\Bigl(\frac{s\,a}{w}\Bigr),
+
+    and the declared step sees :math:`p_{k+1}` in place of :math:`u_k` (:math:`\mathrm{sp}`
+    the softplus, :math:`s` = ``sharpness``, relative to :math:`w`, so the smoothing
+    follows the input's units). A gear's or a lead screw's play between a commanded position
+    and the load: proposed for inputs of kind ``"position"`` or ``"angle"``. Parameter
+    ``{name}_width`` (:math:`w > 0`, in the input's units); hidden state
+    ``{name}_position`` (:math:`p`, started at ``position`` and estimated with the initial
+    state).
+    """
+
+    target = "hidden"
+
+    def __init__(self, input: int, width: float, *, position=0.0, sharpness=50.0, name="backlash"):
+        if not width > 0:
+            raise ValueError(f"width must be positive, got {width!r}.")
+        self.input, self.width, self.position = int(input), float(width), float(position)
+        self.sharpness, self.name = sharpness, name
+
+    @property
+    def hidden_states(self) -> tuple[str, ...]:
+        return (f"{self.name}_position",)
+
+    def parameters(self) -> dict[str, Parameter]:
+        return {f"{self.name}_width": Parameter(self.width, (1e-12, None))}
+
+    def hidden_initial(self) -> tuple[float, ...]:
+        return (self.position,)
+
+    def hidden_kinds(self, input_kinds) -> tuple[str, ...]:
+        return (input_kinds[self.input],)
+
+    def advance(self, hidden, u, theta):
+        width, s = theta[f"{self.name}_width"], self.sharpness
+        position, command = hidden[0], u[self.input]
+
+        def push(gap):
+            return width * jax.nn.softplus(s * gap / width) / s
+
+        moved = position + push(command - width - position) - push(position - command - width)
+        return u.at[self.input].set(moved), jnp.reshape(moved, (1,))
+
+    def describe(self, state_names, output_names, values=None) -> str:
+        return (
+            "the transmission has play (backlash): the load follows the input only once "
+            "the input has crossed the play"
+        )
+
+
 class DictionaryTerm(AdditiveEffect):
     r"""A term of the dictionary promoted into the physics: :math:`g = c\,\varphi_j(x, u)`.
 
@@ -646,6 +722,21 @@ class Switched(Effect):
 
     def apply_output(self, x, u, z, theta):
         return jnp.where(self.on(theta), self.effect.apply_output(x, u, z, theta), z)
+
+    @property
+    def hidden_states(self) -> tuple[str, ...]:
+        return self.effect.hidden_states
+
+    def hidden_initial(self) -> tuple[float, ...]:
+        return self.effect.hidden_initial()
+
+    def hidden_kinds(self, input_kinds) -> tuple[str, ...]:
+        return self.effect.hidden_kinds(input_kinds)
+
+    def advance(self, hidden, u, theta):
+        u_seen, changed = self.effect.advance(hidden, u, theta)
+        on = self.on(theta)
+        return jnp.where(on, u_seen, u), jnp.where(on, changed, hidden)
 
     def describe(self, state_names, output_names, values=None) -> str:
         return self.effect.describe(state_names, output_names, values)
@@ -797,13 +888,17 @@ def augment(physics: PhysicsModel, *effects: Effect) -> PhysicsModel:
         Effects applied in order after the declared step (state effects) and output map
         (output effects); for a physics built with :meth:`PhysicsModel.from_ode`, input
         effects and :class:`AdditiveEffect` terms act inside the integrated right-hand
-        side instead. Their parameters are appended to the model's, by name. Augmenting
-        an augmented model adds to its effects.
+        side instead. Effects with memory (:class:`Backlash`) act first, on the input,
+        through hidden states of their own. Their parameters are appended to the model's,
+        by name. Augmenting an augmented model adds to its effects.
 
     Returns
     -------
     PhysicsModel
-        Same states, inputs, names, initial-state settings and constraints.
+        Same states, inputs, names, initial-state settings and constraints; the hidden
+        states of the effects that have some are appended to the states (with free initial
+        values, see :mod:`sk_offwhite._hidden`), and ``n_declared_states`` counts the
+        declared ones.
     """
     for effect in effects:
         if not isinstance(effect, Effect):
@@ -819,4 +914,7 @@ def augment(physics: PhysicsModel, *effects: Effect) -> PhysicsModel:
     model.output = AugmentedOutput(declared[1], outputs) if outputs else declared[1]
     model.parameters = _merged_parameters(physics, effects)
     model.effects = everything
+    hidden = tuple(e for e in everything if e.hidden_states)
+    if hidden:
+        with_hidden_states(model, physics, hidden, tuple(e for e in effects if e.hidden_states))
     return model

@@ -6,6 +6,7 @@ physics misses one effect (the ``hidden_effect`` of the returned Bunch), for che
 sparse black-box correction finds what the physics is missing.
 """
 
+from sk_offwhite.datasets._backlash import make_backlash_servo, play
 from sk_offwhite.datasets._cascaded_tanks import (
     cascaded_tanks_physics,
     load_cascaded_tanks,
@@ -31,6 +32,7 @@ from sk_offwhite.datasets._vehicle import vehicle_physics_known_registers
 __all__ = [
     "cascaded_tanks_physics",
     "load_cascaded_tanks",
+    "make_backlash_servo",
     "make_cascaded_tanks",
     "make_coulomb_drive",
     "make_dead_zone_motor",
@@ -41,6 +43,7 @@ __all__ = [
     "make_pendulum_drag",
     "make_saturating_actuator",
     "make_vehicle_lateral",
+    "play",
     "safe_sqrt",
     "sensor_reading",
     "vehicle_dictionary_library",

@@ -9,7 +9,9 @@ only where they make physical sense for the variables' kinds
 * velocities and rates: Coulomb friction, quadratic drag (velocities), a polynomial
   stiffness in the kinematic partner (the position), a constant (a force offset);
 * any equation: a constant (:class:`~sk_offwhite.Bias`), a leak for generic states;
-* inputs in the hypothesis: a saturating actuator and a dead zone;
+* inputs in the hypothesis that are efforts or flows: a saturating actuator and a dead zone;
+* inputs that are positions or angles: play in the transmission
+  (:class:`~sk_offwhite.Backlash`, an effect with a hidden state);
 * measured states: a sensor offset and a sensor calibration (offset, gain, curvature:
   :class:`~sk_offwhite.SensorCalibration`); measured ceilings: an output saturation.
 
@@ -30,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._effects import (
+    Backlash,
     Bias,
     DeadZone,
     DictionaryTerm,
@@ -44,7 +47,7 @@ from .._effects import (
     SensorCalibration,
     Stiffness,
 )
-from .._kinds import LEVEL_KINDS, VELOCITY_KINDS, Kinds
+from .._kinds import ACTUATOR_KINDS, LEVEL_KINDS, POSITION_KINDS, VELOCITY_KINDS, Kinds
 from ._hypotheses import Hypothesis
 
 __all__ = ["Candidate", "promoted_terms", "propose_effects", "unique_by_name"]
@@ -169,11 +172,14 @@ def _constants(hypothesis, kinds: Kinds) -> list[Candidate]:
     return out
 
 
-def _actuators(hypothesis, u, input_names) -> list[Candidate]:
-    """A correction in an input: perhaps the actuator saturates, or has a dead zone."""
+def _actuators(hypothesis, u, input_names, kinds: Kinds) -> list[Candidate]:
+    """A correction in an input that is an effort or a flow: perhaps the actuator
+    saturates, or has a dead zone."""
     out = []
     for j, n in enumerate(input_names):
         if n not in hypothesis.variables or np.ptp(u[:, j]) == 0:
+            continue
+        if kinds.inputs[j] not in ACTUATOR_KINDS:
             continue
         rms = float(np.sqrt(np.mean(u[:, j] ** 2)))
         out += [
@@ -186,6 +192,22 @@ def _actuators(hypothesis, u, input_names) -> list[Candidate]:
                 f"{hypothesis.sentence} The actuator of {n} may have a dead zone.",
             ),
         ]
+    return out
+
+
+def _transmissions(hypothesis, u, input_names, kinds: Kinds) -> list[Candidate]:
+    """Play in the transmission of an input that is a position or an angle (a gear, a
+    lead screw): :class:`~sk_offwhite.Backlash`, its half-width started at 5 % of the
+    input's standard deviation and its driven side at the first input. Proposed whatever
+    variables the hypothesis names: an effect with memory is no function of them."""
+    out = []
+    for j, n in enumerate(input_names):
+        spread = float(np.std(u[:, j]))
+        if kinds.inputs[j] not in POSITION_KINDS or not spread > 0:
+            continue
+        effect = Backlash(j, 0.05 * spread, position=float(u[0, j]), name=f"backlash_{n}")
+        reason = f"{hypothesis.sentence} The transmission of {n} may have play (backlash)."
+        out.append(Candidate(effect, reason))
     return out
 
 
@@ -343,7 +365,8 @@ def propose_effects(
         found += _mechanical(hypothesis, states, names, kinds)
         found += _constants(hypothesis, kinds)
         if u_arr is not None:
-            found += _actuators(hypothesis, u_arr, tuple(input_names))
+            found += _actuators(hypothesis, u_arr, tuple(input_names), kinds)
+            found += _transmissions(hypothesis, u_arr, tuple(input_names), kinds)
         u_rows = np.zeros((len(states), 0)) if u_arr is None else u_arr
         proposals += [
             Candidate(_fitted_start(c.effect, hypothesis, states, u_rows, dt), c.reason)

@@ -1,0 +1,106 @@
+r"""Hidden states: effects with memory appended to a model's state.
+
+Some effects cannot be written as a function of the current state and input: the play of
+a gear (backlash) remembers which side of the play it last touched. Such an effect carries
+hidden states :math:`h` of its own, appended after the declared states,
+
+.. math::
+
+    \begin{bmatrix} x_{k+1} \\ h_{k+1} \end{bmatrix} =
+    \begin{bmatrix} f\bigl(x_k, \tilde u_k; \theta\bigr) \\ h_{k+1} \end{bmatrix},
+    \qquad (\tilde u_k, h_{k+1}) = a(h_k, u_k; \theta_E),
+
+where :math:`a` is the effect's ``advance``: it turns the input the plant receives into the
+one the declared step sees and updates its memory. The declared step, output map and
+constraints see only :math:`x`; the hidden states' initial values are estimated with the
+declared ones (they are ordinary, free entries of :math:`x_0`).
+"""
+
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+__all__ = ["DeclaredStates", "HiddenStateStep", "with_hidden_states"]
+
+
+class HiddenStateStep:
+    """Step of a model with hidden states: each effect's ``advance`` on its slice of the
+    hidden states and on the input, then the ``inner`` step on the declared states."""
+
+    def __init__(self, inner, effects: tuple, n_declared: int):
+        self.inner, self.effects, self.n_declared = inner, effects, int(n_declared)
+        self.__name__ = getattr(inner, "__name__", "step")
+
+    def __call__(self, x, u, theta):
+        start, hidden_next = self.n_declared, []
+        for effect in self.effects:
+            stop = start + len(effect.hidden_states)
+            u, h = effect.advance(x[start:stop], u, theta)
+            hidden_next.append(jnp.reshape(h, (stop - start,)).astype(x.dtype))
+            start = stop
+        declared = self.inner(x[: self.n_declared], u, theta)
+        declared = jnp.asarray(declared, dtype=x.dtype).reshape(self.n_declared)
+        return jnp.concatenate([declared, *hidden_next])
+
+    def _key(self):
+        return (HiddenStateStep, self.inner, self.effects, self.n_declared)
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, HiddenStateStep) and self._key() == other._key()
+
+    def __hash__(self) -> int:
+        return hash(self._key())
+
+
+class DeclaredStates:
+    """``function(x[:n_declared], u, theta)``: a declared map (output, constraint) that
+    never sees the hidden states."""
+
+    def __init__(self, function, n_declared: int):
+        self.function, self.n_declared = function, int(n_declared)
+
+    def __call__(self, x, u, theta):
+        return self.function(x[: self.n_declared], u, theta)
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, DeclaredStates) and (self.function, self.n_declared) == (
+            other.function,
+            other.n_declared,
+        )
+
+    def __hash__(self) -> int:
+        return hash((DeclaredStates, self.function, self.n_declared))
+
+
+def _declared_only(function, n_declared: int):
+    """``function`` restricted to the declared states (``None`` and wrapped maps kept)."""
+    if function is None or isinstance(function, DeclaredStates):
+        return function
+    return DeclaredStates(function, n_declared)
+
+
+def with_hidden_states(model, physics, hidden: tuple, new: tuple) -> None:
+    """Give ``model`` (a copy of ``physics`` being augmented, modified in place) the hidden
+    states of the effects ``hidden`` (all of them, in order); ``new`` are those ``physics``
+    does not have yet, whose states are appended to its ``x0``, names and kinds.
+
+    The output map (unless it reads states by index), the constraints and the step see the
+    declared states only.
+    """
+    n_declared = getattr(physics, "n_declared_states", physics.n_states)
+    added = [(effect, name) for effect in new for name in effect.hidden_states]
+    initial = [value for effect in new for value in effect.hidden_initial()]
+    low, high = physics.x0_bounds
+    model.n_declared_states = n_declared
+    model.n_states = physics.n_states + len(added)
+    model.step = HiddenStateStep(model.step, hidden, n_declared)
+    if callable(model.output) and not hasattr(model.output, "indices"):
+        model.output = _declared_only(model.output, n_declared)
+    model.inequality = _declared_only(physics.inequality, n_declared)
+    model.equality = _declared_only(physics.equality, n_declared)
+    model.x0 = np.concatenate([physics.x0, np.clip(initial, low, high)])
+    model.x0_fixed = np.concatenate([physics.x0_fixed, np.zeros(len(added), bool)])
+    model.state_names = tuple(physics.state_names) + tuple(name for _, name in added)
+    kinds = [kind for effect in new for kind in effect.hidden_kinds(physics.input_kinds)]
+    model.state_kinds = tuple(physics.state_kinds) + tuple(kinds)

@@ -1,0 +1,173 @@
+"""Backlash, an effect with memory: hidden states, the servo generator, and the loop on it.
+
+The loop test runs a short record with the sparse-δ fits skipped, as in
+``test_loop_mechanical.py``. The hypothesis' sign is not checked: the effect is relative to
+the refitted stiffness and damping, which absorb part of it (measured: the hypothesis on the
+rate equation has sign +1 where the play's contribution along the true trajectory has -1).
+"""
+
+import pickle
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from sk_offwhite import Backlash, GreyBoxSparseRegressor, Parameter, augment, switched
+from sk_offwhite._kinds import Kinds
+from sk_offwhite.datasets import make_backlash_servo, play
+from sk_offwhite.datasets._backlash import SERVO_THETA, SERVO_WIDTH
+from sk_offwhite.loop import LoopSettings, close_the_loop, score_models, write_report
+from sk_offwhite.loop._candidates import propose_effects
+from sk_offwhite.loop._hypotheses import Hypothesis
+
+
+def _values(physics, **updates):
+    values = {name: p.value for name, p in physics.parameters.items()}
+    return {name: jnp.asarray(v) for name, v in {**values, **updates}.items()}
+
+
+def _simulate(physics, theta, u):
+    step = jax.jit(physics.step)
+    x, states = jnp.asarray(physics.x0), []
+    for row in u:
+        states.append(np.asarray(x))
+        x = step(x, jnp.asarray(row), theta)
+    return np.array(states)
+
+
+@pytest.fixture(scope="module")
+def servo():
+    return make_backlash_servo(n_samples=400, random_state=3)
+
+
+def test_backlash_adds_a_free_hidden_state_after_the_declared_ones(servo):
+    physics = servo.physics
+    augmented = augment(physics, Backlash(0, 0.1, position=0.2, name="play"))
+    assert physics.n_states == 2 and augmented.n_states == 3
+    assert augmented.n_declared_states == 2
+    assert augmented.state_names == ("theta", "omega", "play_position")
+    assert augmented.state_kinds == ("angle", "rate", "angle")
+    np.testing.assert_array_equal(augmented.x0, [0.0, 0.0, 0.2])
+    np.testing.assert_array_equal(augmented.x0_fixed, [False, False, False])
+    assert list(augmented.parameters)[-1] == "play_width"
+    twice = augment(augmented, Backlash(0, 0.3, name="second"))
+    assert twice.n_states == 4 and twice.state_names[-2:] == ("play_position", "second_position")
+    restored = pickle.loads(pickle.dumps(twice))
+    assert restored.step == twice.step and restored.n_states == 4
+
+
+def test_a_sharp_backlash_is_the_exact_play_and_the_output_ignores_it(servo):
+    augmented = augment(servo.physics, Backlash(0, 0.05, position=float(servo.u[0, 0])))
+    augmented = augmented.with_parameters(**{"backlash_width": Parameter(0.05)})
+    sharp = augment(servo.physics, Backlash(0, 0.05, position=float(servo.u[0, 0]), sharpness=1e4))
+    theta = _values(sharp, **SERVO_THETA)
+    states = _simulate(sharp, theta, servo.u)
+    played = play(servo.u[:, 0], SERVO_WIDTH)
+    np.testing.assert_allclose(states[1:, 2], played[:-1], atol=1e-5)
+    np.testing.assert_allclose(states[:, :2], servo.x, atol=1e-4)
+    z = sharp.output(jnp.asarray(states[5]), jnp.asarray(servo.u[5]), theta)
+    assert np.shape(z) == (1,) and float(z[0]) == pytest.approx(states[5, 0])
+
+
+def test_a_switched_off_backlash_is_the_declared_model(servo):
+    effect = switched(Backlash(0, 0.05))
+    model = augment(servo.physics, effect)
+    off = _values(model, backlash_on=0.0, **SERVO_THETA)
+    u = jnp.asarray(servo.u[10])
+    x = jnp.array([0.1, -0.2, 0.3])
+    declared = servo.physics.step(x[:2], u, _values(servo.physics, **SERVO_THETA))
+    np.testing.assert_allclose(model.step(x, u, off)[:2], declared)
+    assert float(model.step(x, u, off)[2]) == pytest.approx(0.3)
+
+
+def test_the_width_has_a_finite_gradient_everywhere_in_the_play(servo):
+    model = augment(servo.physics, Backlash(0, 0.05))
+
+    def moved(width, position, command):
+        theta = _values(model, backlash_width=width, **SERVO_THETA)
+        x = jnp.array([0.0, 0.0, position])
+        return model.step(x, jnp.array([command]), theta)[2]
+
+    for position, command in [(0.0, 0.0), (0.0, 0.2), (0.0, -0.2), (0.049, 0.0)]:
+        slope = jax.grad(moved)(0.05, position, command)
+        assert np.isfinite(float(slope))
+    assert float(jax.grad(moved)(0.05, 0.0, 0.2)) == pytest.approx(-1.0, abs=1e-6)
+
+
+def test_fitting_the_width_recovers_the_play(servo):
+    model = augment(servo.physics, Backlash(0, 0.02, position=float(servo.u[0, 0])))
+    est = GreyBoxSparseRegressor(model, max_iter=100).fit(servo.u, servo.z)
+    assert est.parameters_["backlash_width"] == pytest.approx(SERVO_WIDTH, rel=0.05)
+    assert est.parameters_["k"] == pytest.approx(SERVO_THETA["k"], rel=0.02)
+    assert est.initial_states_.shape[-1] == 3
+
+
+def test_the_generator_simulates_the_played_input_and_is_reproducible():
+    data = make_backlash_servo(n_samples=300, random_state=1, noise_std=0.0)
+    again = make_backlash_servo(n_samples=300, random_state=1, noise_std=0.0)
+    np.testing.assert_array_equal(data.u, again.u)
+    np.testing.assert_array_equal(data.z[:, 0], data.x[:, 0])
+    played = data.hidden_effect["played"]
+    np.testing.assert_array_equal(played, play(data.u[:, 0], SERVO_WIDTH))
+    assert np.all(np.abs(played - data.u[:, 0]) <= SERVO_WIDTH + 1e-12)
+    with jax.enable_x64(True):
+        theta = {k: jnp.asarray(v) for k, v in data.true_parameters.items()}
+        step = jax.jit(data.physics.step)
+        rows = zip(data.x, played, strict=True)
+        predicted = np.array([step(x, jnp.array([p]), theta) for x, p in rows])
+    np.testing.assert_allclose(predicted[:-1], data.x[1:], atol=1e-12)
+    assert data.kinds == {"states": ("angle", "rate"), "inputs": ("angle",)}
+
+
+def test_backlash_is_proposed_for_angle_inputs_only():
+    hypothesis = Hypothesis("omega", 1, ("omega",), -1, None, sentence="omega lacks a term.")
+    states = np.random.default_rng(0).normal(size=(50, 2))
+    u = np.random.default_rng(1).normal(size=(50, 1))
+    names = ("theta", "omega")
+
+    def proposed(input_kind):
+        kinds = Kinds(("angle", "rate"), (input_kind,), {1: 0})
+        found = propose_effects([hypothesis], [], names, ["theta"], states, u=u,
+                                input_names=("u",), kinds=kinds)  # fmt: skip
+        return {c.effect.name: c.effect for c in found}
+
+    angle, force = proposed("angle"), proposed("force")
+    assert "backlash_u" in angle and "backlash_u" not in force
+    assert angle["backlash_u"].width == pytest.approx(0.05 * np.std(u))
+    assert angle["backlash_u"].position == pytest.approx(u[0, 0])
+
+
+@pytest.fixture(scope="module")
+def loop_run():
+    data = make_backlash_servo(n_samples=1000, random_state=0)
+    settings = LoopSettings(n_folds=2, max_iter=100, fit_delta=False, max_candidates=6)
+    return data, close_the_loop(
+        data.physics, data.suggested_library, data.u, data.z, settings=settings
+    )
+
+
+def test_the_loop_names_the_backlash_and_recovers_the_play(loop_run):
+    data, result = loop_run
+    assert [h.equation_index for h in result.hypotheses][:1] == [data.hidden_effect["equation"]]
+    assert [type(e) for e in result.effects] == [Backlash] and result.failures == []
+    fitted = result.final.parameters_
+    assert fitted["backlash_u_width"] == pytest.approx(SERVO_WIDTH, rel=0.05)
+    for name, value in data.true_parameters.items():
+        assert fitted[name] == pytest.approx(value, rel=0.05), name
+
+
+def test_the_loop_cuts_the_validation_error_and_reports_the_hidden_state(loop_run, tmp_path):
+    data, result = loop_run
+    records = {"estimation": (data.u, data.z), "validation": (data.u_val, data.z_val)}
+    rows = score_models(result, records)
+    rmse = {
+        r["model"]: r["rmse"]
+        for r in rows
+        if r["protocol"] == "init_window" and r["record"] == "validation"
+    }
+    assert rmse["augmented physics"] < 0.5 * rmse["declared physics"], rmse
+    assert result.chosen == "final"
+    assert result.cv_errors["final"] == min(result.cv_errors.values())
+    text = write_report(result, rows, records, tmp_path, title="servo").read_text()
+    assert "play (backlash)" in text
