@@ -7,7 +7,7 @@ the sparse corrections that show what is left, and writes a report with the erro
 and after on both records under both scoring protocols and the CV-best model.
 
 Run: ``python examples/cascaded_tanks_loop.py [--out DIR] [--quick] [--quiet] [--no-cache]
-[--relax-exponents] [--selection cv|tail]``
+[--relax-exponents] [--selection cv|tail] [--n-jobs N]``
 (``DIR`` defaults to ``reports/cascaded_tanks``); the stages of the loop are logged as they
 run (``--quiet`` switches that off); compiled programs are kept on disk for the next run
 (:func:`sk_offwhite.enable_compilation_cache`; ``--no-cache`` switches that off).
@@ -61,6 +61,12 @@ def main(argv=None):
         help="do not keep compiled programs on disk (by default they are, in "
         "$SK_OFFWHITE_CACHE or ~/.cache/sk_offwhite/xla, so a second run compiles little)",
     )
+    parser.add_argument(
+        "--n-jobs",
+        type=int,
+        default=2,
+        help="processes that fit the cross-validation folds (default 2; 1: all in this one)",
+    )
     args = parser.parse_args(argv)
     if not args.no_cache:
         enable_compilation_cache()
@@ -76,6 +82,7 @@ def main(argv=None):
         max_effects=1 if args.quick else 3,
         max_candidates=3 if args.quick else None,
         selection=args.selection,
+        n_jobs=args.n_jobs,
     )
     start = time.perf_counter()
     result = close_the_loop(physics, tanks_library(), data.u_est, data.z_est, settings=settings)

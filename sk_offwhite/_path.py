@@ -20,6 +20,7 @@ from sklearn.base import clone
 from sklearn.model_selection import KFold, check_cv
 
 from ._estimator import GreyBoxSparseRegressor
+from ._parallel import gather, launch
 
 __all__ = ["DIVERGED_FACTOR", "GammaPath", "fit_gamma_path", "gamma_grid"]
 
@@ -236,6 +237,7 @@ def fit_gamma_path(
     one_standard_error: bool = False,
     init_window: int | None = None,
     sample_index=None,
+    n_jobs: int | None = None,
 ) -> GammaPath:
     r"""Fit ``estimator`` along a grid of :math:`\gamma` and (with ``cv``) choose one.
 
@@ -268,6 +270,11 @@ def fit_gamma_path(
         uses the estimator's rule (``init_window`` or ``min(50, n // 5)``).
     sample_index : array-like, default=None
         As for ``fit`` (a jump starts a new record).
+    n_jobs : int, default=None
+        Processes that fit the CV folds (joblib's convention: ``None`` one, ``-1`` all
+        cores) while this one fits the whole record. The numbers are the same as with one
+        (each fold is the same computation); the workers compile their own programs unless
+        the persistent cache is on (:func:`~sk_offwhite.enable_compilation_cache`).
 
     Returns
     -------
@@ -282,19 +289,22 @@ def fit_gamma_path(
         values, gamma_max = gamma_grid(estimator.gamma_max_, n_gammas, eps), estimator.gamma_max_
     else:
         values, gamma_max = _check_gammas(gammas), np.nan
-    cv_error = cv_rmse = None
+    cv_error = cv_rmse = jobs = None
     if cv is not None:
         template, window = clone(estimator), _init_window(estimator, init_window, len(u_arr))
-        folds = [
-            _fold_errors(clone(template), u_arr, z_arr, train, test, values, window)
-            for train, test in _splits(cv, len(u_arr))
+        splits = _splits(cv, len(u_arr))
+        arguments = [
+            (clone(template), u_arr, z_arr, train, test, values, window) for train, test in splits
         ]
-        cv_error, cv_rmse = np.moveaxis(np.stack(folds, axis=1), -1, 0)
+        jobs = launch(_fold_errors, arguments, n_jobs)
     warm_start = estimator.warm_start
     try:
         snapshots, train_error = _whole_record_path(estimator, u_arr, z_arr, values, sample_index)
     finally:
         estimator.set_params(warm_start=warm_start)
+    if jobs is not None:
+        folds = gather(jobs)
+        cv_error, cv_rmse = np.moveaxis(np.stack(folds, axis=1), -1, 0)
     failed = np.array([snap is None for snap in snapshots])
     if cv_error is not None:
         cv_error[failed], cv_rmse[failed] = np.inf, np.inf

@@ -39,15 +39,16 @@ from __future__ import annotations
 
 import copy
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from sklearn.base import clone
-from sklearn.model_selection import KFold, cross_val_score
+from sklearn.model_selection import KFold
 
 from .._effects import DictionaryTerm, augment, relaxations, time_step
 from .._estimator import GreyBoxSparseRegressor
 from .._kinds import physical_kinds
+from .._parallel import gather, launch
 from .._path import GammaPath, fit_gamma_path
 from .._physics import Parameter
 from .._validation import check_record
@@ -93,6 +94,9 @@ class LoopSettings:
     held-out RMSE over ``n_folds`` contiguous blocks; ``"tail"``, the held-out RMSE of the
     last ``tail_fraction`` of the record (after its ``init_window``) when the rest is
     fitted, which is how the model will be used: fitted on the past, run into the future.
+    ``n_jobs`` processes fit the held-out folds (joblib's convention: ``None`` one, ``-1``
+    all cores), with the same numbers as one; switch the persistent compilation cache on
+    (:func:`~sk_offwhite.enable_compilation_cache`) so that they share compiled programs.
     """
 
     gammas: tuple[float, ...] | None = None
@@ -115,6 +119,7 @@ class LoopSettings:
     share_programs: bool = False
     selection: str = "cv"
     tail_fraction: float = 0.25
+    n_jobs: int | None = None
 
     def __post_init__(self):
         if self.selection not in ("cv", "tail"):
@@ -229,17 +234,24 @@ def held_out_splits(settings: LoopSettings, n_samples: int) -> list:
 
 
 def _cv_rmse(est, u, z, settings: LoopSettings) -> float:
-    """Mean held-out simulation RMSE over the blocks of :func:`held_out_splits`."""
-    scores = cross_val_score(
-        est,
-        u,
-        z,
-        cv=held_out_splits(settings, len(u)),
-        scoring=held_out_rmse(settings.init_window),
-        params={"sample_index": np.arange(len(u))},
-        error_score=-np.inf,
-    )
-    return float(-np.mean(scores))
+    """Mean held-out simulation RMSE over the blocks of :func:`held_out_splits`, the folds
+    fitted by ``settings.n_jobs`` processes (a fold whose fit fails scores ``inf``)."""
+    arguments = [
+        (clone(est), u, z, train, test, settings.init_window)
+        for train, test in held_out_splits(settings, len(u))
+    ]
+    return float(np.mean(gather(launch(_fold_rmse, arguments, settings.n_jobs))))
+
+
+def _fold_rmse(est, u, z, train, test, init_window: int) -> float:
+    """Held-out RMSE of ``test`` (one block) after fitting ``train``; ``inf`` (and a
+    warning) when the fit fails."""
+    try:
+        est.fit(u[train], z[train], sample_index=train)
+    except (ValueError, TypeError, FloatingPointError, np.linalg.LinAlgError) as error:
+        warnings.warn(f"a fold's fit failed and scores inf: {error}", UserWarning, stacklevel=2)
+        return np.inf
+    return -held_out_rmse(init_window)(est, u[test], z[test])
 
 
 def _set_cv(board, effects, warm, u, z, settings, failures):
@@ -258,6 +270,28 @@ def _set_cv(board, effects, warm, u, z, settings, failures):
     return _cv_rmse(_estimator(model, settings, cv=True), u, z, settings), fitted
 
 
+def _sets_cv(board, steps, u, z, settings, failures) -> list:
+    """``(label, score, fitted)`` of :func:`_set_cv` for each step's effect set, the sets
+    cross-validated by ``settings.n_jobs`` processes (each set's folds in its own one)."""
+    labels = [_label(board.ordered(effects)) for effects, _, _ in steps]
+    alone = replace(settings, n_jobs=None)
+    arguments = [(board, effects, warm, u, z, alone) for effects, warm, _ in steps]
+
+    def progress(k, _):
+        logger.info("  CV of %s (%d of %d)", labels[k - 1], k, len(labels))
+
+    outcomes = gather(launch(_set_cv_alone, arguments, settings.n_jobs), progress=progress)
+    failures.extend(line for _, _, lines in outcomes for line in lines)
+    return [(label, *outcome[:2]) for label, outcome in zip(labels, outcomes, strict=True)]
+
+
+def _set_cv_alone(board, effects, warm, u, z, settings):
+    """:func:`_set_cv` with failures of its own: ``(score, fitted, failures)``."""
+    failures = []
+    score, fitted = _set_cv(board, effects, warm, u, z, settings, failures)
+    return score, fitted, failures
+
+
 def _attempt(failures: list, label: str, function, *args):
     """``function(*args)``; a failure becomes a line of ``failures`` (and ``None``), and
     warnings are re-issued prefixed with ``label``."""
@@ -265,12 +299,39 @@ def _attempt(failures: list, label: str, function, *args):
         warnings.simplefilter("always")
         try:
             value = function(*args)
-        except (ValueError, TypeError, FloatingPointError, np.linalg.LinAlgError) as error:
+        except FIT_ERRORS as error:
             failures.append(f"{label}: {error}")
             value = None
     for warning in caught:
         warnings.warn(f"{label}: {warning.message}", warning.category, stacklevel=3)
     return value
+
+
+FIT_ERRORS = (ValueError, TypeError, FloatingPointError, np.linalg.LinAlgError)
+"""What a failing fit raises: :func:`_attempt` turns these into lines of the report."""
+
+
+def _trying(function, *args):
+    """``(function(*args), None)``, or ``(None, message)`` when it raises a fit error."""
+    try:
+        return function(*args), None
+    except FIT_ERRORS as error:
+        return None, str(error)
+
+
+def _attempt_all(failures: list, calls, n_jobs) -> list:
+    """:func:`_attempt` of each ``(label, function, *args)`` of ``calls``, the calls run by
+    ``n_jobs`` processes; values in order (``None`` where a call failed)."""
+    labels = [call[0] for call in calls]
+
+    def progress(k, label):
+        logger.info("  %s (%d of %d)", label, k, len(calls))
+
+    jobs = launch(_trying, [call[1:] for call in calls], n_jobs)
+    outcomes = gather(jobs, labels, progress)
+    failures.extend(f"{label}: {error}" for label, (_, error) in zip(labels, outcomes, strict=True)
+                    if error is not None)  # fmt: skip
+    return [value for value, _ in outcomes]
 
 
 def _fit_delta(physics, library, u, z, settings, evidence=None):
@@ -293,6 +354,7 @@ def _fit_delta(physics, library, u, z, settings, evidence=None):
         eps=settings.gamma_eps,
         cv=held_out_splits(settings, len(u)),
         init_window=settings.init_window,
+        n_jobs=settings.n_jobs,
     )
     return path.estimator, path
 
@@ -353,14 +415,20 @@ def _starts(warm: dict, effect, params: dict) -> list[dict]:
     return [{**warm, **alone}] + ([{**warm, **proposed}] if alone != proposed else [])
 
 
-def _best_of(board, effects, starts, u, z, settings, failures):
-    """The :func:`_quick_fit` of lowest estimation RMSE over ``starts`` (``None`` if every
-    one fails)."""
-    label, best = "effects " + _label(effects), None
-    for start in starts:
-        fitted = _attempt(failures, label, _quick_fit, board, effects, start, u, z, settings)
-        if fitted is not None and (best is None or fitted[0] < best[0]):
-            best = fitted
+def _best_of(board, sets, u, z, settings, failures) -> list:
+    """For each ``(effects, starts)`` of ``sets``, the :func:`_quick_fit` of lowest
+    estimation RMSE over its starts (``None`` if every one fails); all the fits run by
+    ``settings.n_jobs`` processes."""
+    calls = [
+        ("effects " + _label(effects), _quick_fit, board, effects, start, u, z, settings)
+        for effects, starts in sets
+        for start in starts
+    ]
+    outcomes = iter(_attempt_all(failures, calls, settings.n_jobs))
+    best = []
+    for _, starts in sets:
+        fits = [fit for fit in (next(outcomes) for _ in starts) if fit is not None]
+        best.append(min(fits, key=lambda fit: fit[0]) if fits else None)
     return best
 
 
@@ -374,15 +442,16 @@ def _rank_alone(board, candidates, u, z, settings, failures):
     """``(estimation RMSE, candidate, fitted effect parameters)`` of each candidate added
     alone, best first (``inf`` and a line in ``failures`` where the fit failed); a named
     effect ranks before a promoted term unless the term is better by ``tolerance``."""
-    ranked = []
-    for k, candidate in enumerate(candidates, 1):
-        label = f"candidate {candidate.effect.name}"
-        logger.info("  %s (%d of %d)", label, k, len(candidates))
-        fitted = _attempt(
-            failures, label, _quick_fit, board, (candidate.effect,), {}, u, z, settings
+    calls = [
+        (f"candidate {c.effect.name}", _quick_fit, board, (c.effect,), {}, u, z, settings)
+        for c in candidates
+    ]
+    ranked = [
+        (np.inf, candidate, {}) if fitted is None else (fitted[0], candidate, fitted[1])
+        for candidate, fitted in zip(
+            candidates, _attempt_all(failures, calls, settings.n_jobs), strict=True
         )
-        rmse, params = fitted if fitted is not None else (np.inf, {})
-        ranked.append((rmse, candidate, params))
+    ]
     return sorted(ranked, key=lambda item: item[0] * _handicap(item[1].effect, settings))
 
 
@@ -410,16 +479,18 @@ def _forward(board, ranked, u, z, settings, base_rmse, failures):
         if steps:
             current, current_rmse = list(steps[0][0]), steps[0][2]
     while len(current) < settings.max_effects:
-        trials = []
-        for effect, params, _ in pool:
-            if effect in current:
-                continue
-            label = "effects " + " + ".join(e.name for e in (*current, effect))
-            logger.info("  %s", label)
-            warm = {**steps[-1][1], **_own(params, effect)}
-            fitted = _best_of(board, (*current, effect), [warm], u, z, settings, failures)
-            if fitted is not None:
-                trials.append((fitted[0], effect, fitted[1]))
+        added = [(effect, params) for effect, params, _ in pool if effect not in current]
+        calls = [
+            ("effects " + _label((*current, effect)), _quick_fit, board, (*current, effect),
+             {**steps[-1][1], **_own(params, effect)}, u, z, settings)
+            for effect, params in added
+        ]  # fmt: skip
+        fitted = _attempt_all(failures, calls, settings.n_jobs)
+        trials = [
+            (f[0], effect, f[1])
+            for (effect, _), f in zip(added, fitted, strict=True)
+            if f is not None
+        ]
         if not trials:
             break
         rmse, effect, params = min(trials, key=lambda t: t[0] * _handicap(t[1], settings))
@@ -500,12 +571,9 @@ def _select_effects(
     steps = _forward(board, ranked, u, z, settings, base_rmse, failures)
     steps = _by_size(steps + _nested(ranked, base_rmse, settings))
     trail, fits = [("declared physics", declared_cv)], {}
-    for k, (effects, warm, _) in enumerate(steps, 1):
-        logger.info("  CV of %s (%d of %d)", _label(effects), k, len(steps))
-        score, fits[_label(board.ordered(effects))] = _set_cv(
-            board, effects, warm, u, z, settings, failures
-        )
-        trail.append((_label(board.ordered(effects)), score))
+    for label, score, fitted in _sets_cv(board, steps, u, z, settings, failures):
+        fits[label] = fitted
+        trail.append((label, score))
     k = _smallest_within([s for _, s in trail], settings.tolerance)
     if k == 0 or trail[k][1] > (1.0 - settings.min_gain) * trail[0][1]:
         return (), trail, singles, {}, fits
@@ -537,20 +605,27 @@ def _swap(board, ranked, chosen, u, z, settings, failures, fits):
         return effects, warm, []
     rows, best = [], (effects, warm, (1.0 - settings.min_gain) * cv)
     lighter = (effects, warm, (1.0 + settings.tolerance) * cv)
-    for trial, starts, bar in _moves(effects, warm, ranked, base[0], settings):
-        label = _label(board.ordered(trial))
-        if label in fits:  # cross-validated already, and not better by min_gain
-            continue
-        logger.info("  stepwise: %s", label)
-        fitted = _best_of(board, trial, starts, u, z, settings, failures)
-        if fitted is None or not fitted[0] < bar:
-            continue
-        score, fits[label] = _set_cv(board, trial, fitted[1], u, z, settings, failures)
+    moves = [  # those cross-validated already were not better by min_gain
+        move
+        for move in _moves(effects, warm, ranked, base[0], settings)
+        if _label(board.ordered(move[0])) not in fits
+    ]
+    fitted = _best_of(board, [(trial, starts) for trial, starts, _ in moves], u, z, settings,
+                      failures)  # fmt: skip
+    passed = [
+        (trial, fit[1], None)
+        for (trial, _, bar), fit in zip(moves, fitted, strict=True)
+        if fit is not None and fit[0] < bar
+    ]
+    for (trial, params, _), (label, score, fit) in zip(
+        passed, _sets_cv(board, passed, u, z, settings, failures), strict=True
+    ):
+        fits[label] = fit
         rows.append((label, score))
         if score < best[2]:
-            best = (trial, fitted[1], score)
+            best = (trial, params, score)
         elif len(trial) < len(effects) and score <= lighter[2]:
-            lighter = (trial, fitted[1], score)
+            lighter = (trial, params, score)
     chosen = best if best[0] is not effects else lighter
     return chosen[0], chosen[1], rows
 

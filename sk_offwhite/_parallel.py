@@ -1,0 +1,49 @@
+"""Independent fits in worker processes, their warnings shown in the caller.
+
+A joblib worker (the ``loky`` backend) does not show the warnings its task raises; the
+helpers here record them in the task and issue them again, in order, in the process that
+collects the results. With one job nothing leaves the process and the tasks run at once,
+in order, exactly as a loop would run them.
+"""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Callable, Iterable
+
+from joblib import Parallel, delayed, effective_n_jobs
+
+__all__ = ["gather", "launch"]
+
+
+def _recording(function: Callable, *args):
+    """``function(*args)`` and the warnings it raised, as ``(message, category)`` pairs."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        value = function(*args)
+    return value, [(str(w.message), w.category) for w in caught]
+
+
+def launch(function: Callable, arguments: Iterable[tuple], n_jobs: int | None):
+    """``function(*args)`` for each tuple of ``arguments``: computed now (one job), or
+    started now in ``n_jobs`` worker processes (joblib's convention: ``-1`` all cores),
+    whose results arrive while the caller goes on. Pass the result to :func:`gather`."""
+    tasks = (delayed(_recording)(function, *args) for args in arguments)
+    if effective_n_jobs(n_jobs) == 1:
+        return [task(*args, **kwargs) for task, args, kwargs in tasks]
+    return Parallel(n_jobs=n_jobs, return_as="generator")(tasks)
+
+
+def gather(jobs, labels=None, progress: Callable | None = None) -> list:
+    """The values of :func:`launch`'s tasks, in order, each task's warnings issued again
+    here (prefixed with ``"{label}: "`` when ``labels`` names the tasks); ``progress(k,
+    label)`` is called as the ``k``-th value (from 1) arrives."""
+    values = []
+    for k, (value, caught) in enumerate(jobs):
+        label = None if labels is None else labels[k]
+        for message, category in caught:
+            warnings.warn(f"{label}: {message}" if label else message, category, stacklevel=3)
+        values.append(value)
+        if progress is not None:
+            progress(k + 1, label)
+    return values

@@ -1,0 +1,69 @@
+"""Fits in worker processes: the same numbers as in one process, warnings and failures shown."""
+
+import math
+import warnings
+
+import numpy as np
+import pysindy as ps
+import pytest
+
+from sk_offwhite import GreyBoxSparseRegressor, fit_gamma_path
+from sk_offwhite._parallel import gather, launch
+from sk_offwhite.datasets import make_leaky_tank
+from sk_offwhite.loop import LoopSettings, close_the_loop
+from sk_offwhite.loop._loop import _attempt_all
+
+
+@pytest.mark.parametrize("n_jobs", [None, 2])
+def test_tasks_come_back_in_order_with_their_warnings_and_progress(n_jobs):
+    arguments = [(f"careful {k}",) for k in range(4)]
+    seen = []
+    with pytest.warns(UserWarning) as caught:
+        values = gather(
+            launch(warnings.warn, arguments, n_jobs),
+            labels=list("abcd"),
+            progress=lambda k, label: seen.append((k, label)),
+        )
+    assert values == [None] * 4
+    assert [str(w.message) for w in caught] == [f"{x}: careful {k}" for k, x in enumerate("abcd")]
+    assert seen == [(1, "a"), (2, "b"), (3, "c"), (4, "d")]
+
+
+def test_a_failing_call_in_a_worker_is_a_line_of_the_failures_and_the_others_go_on():
+    failures = []
+    values = _attempt_all(
+        failures, [("root of 4", math.sqrt, 4.0), ("root of -1", math.sqrt, -1.0)], n_jobs=2
+    )
+    assert values == [2.0, None]
+    assert failures == ["root of -1: math domain error"]
+
+
+@pytest.fixture(scope="module")
+def tank():
+    return make_leaky_tank(n_samples=300, random_state=1)
+
+
+def test_the_path_with_worker_folds_is_the_path_in_one_process(tank):
+    def path(n_jobs):
+        est = GreyBoxSparseRegressor(tank.physics, ps.PolynomialLibrary(degree=2), max_iter=40)
+        return fit_gamma_path(est, tank.u, tank.z, n_gammas=3, cv=2, n_jobs=n_jobs)
+
+    one, two = path(None), path(2)
+    np.testing.assert_array_equal(one.cv_error, two.cv_error)
+    np.testing.assert_array_equal(one.cv_rmse, two.cv_rmse)
+    np.testing.assert_array_equal(one.coefs, two.coefs)
+    assert one.best_index == two.best_index
+
+
+def test_the_loop_with_workers_chooses_and_scores_as_in_one_process(tank):
+    def loop(n_jobs):
+        settings = LoopSettings(
+            n_folds=2, max_iter=40, max_effects=2, max_candidates=4, fit_delta=False,
+            n_jobs=n_jobs,
+        )  # fmt: skip
+        return close_the_loop(tank.physics, None, tank.u, tank.z, settings=settings)
+
+    one, two = loop(None), loop(2)
+    assert [e.name for e in one.effects] == [e.name for e in two.effects]
+    assert one.selection == two.selection and one.single_fits == two.single_fits
+    assert one.cv_errors == two.cv_errors and one.failures == two.failures
