@@ -30,8 +30,8 @@ from ._splitters import SequenceSplit, SequenceWarning
 
 __all__ = [
     "AdditiveEffect",
-    "Bias",
     "Backlash",
+    "Bias",
     "DeadZone",
     "DictionaryTerm",
     "DivergenceWarning",

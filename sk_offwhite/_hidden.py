@@ -89,6 +89,12 @@ def with_hidden_states(model, physics, hidden: tuple, new: tuple) -> None:
     declared states only.
     """
     n_declared = getattr(physics, "n_declared_states", physics.n_states)
+    for effect in new:
+        index = getattr(effect, "input", None)
+        if index is not None and not 0 <= index < physics.n_inputs:
+            raise ValueError(
+                f"{effect!r} acts on input {index}, but the physics has {physics.n_inputs}."
+            )
     added = [(effect, name) for effect in new for name in effect.hidden_states]
     initial = [value for effect in new for value in effect.hidden_initial()]
     low, high = physics.x0_bounds

@@ -57,6 +57,11 @@ def test_backlash_adds_a_free_hidden_state_after_the_declared_ones(servo):
     assert restored.step == twice.step and restored.n_states == 4
 
 
+def test_a_backlash_on_an_input_the_physics_lacks_is_refused(servo):
+    with pytest.raises(ValueError, match="acts on input 1, but the physics has 1"):
+        augment(servo.physics, Backlash(1, 0.05))
+
+
 def test_a_sharp_backlash_is_the_exact_play_and_the_output_ignores_it(servo):
     augmented = augment(servo.physics, Backlash(0, 0.05, position=float(servo.u[0, 0])))
     augmented = augmented.with_parameters(**{"backlash_width": Parameter(0.05)})

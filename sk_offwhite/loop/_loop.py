@@ -94,8 +94,9 @@ class LoopSettings:
     held-out RMSE over ``n_folds`` contiguous blocks; ``"tail"``, the held-out RMSE of the
     last ``tail_fraction`` of the record (after its ``init_window``) when the rest is
     fitted, which is how the model will be used: fitted on the past, run into the future.
-    ``n_jobs`` processes fit the held-out folds (joblib's convention: ``None`` one, ``-1``
-    all cores), with the same numbers as one; switch the persistent compilation cache on
+    ``n_jobs`` processes (joblib's convention: ``None`` one, ``-1`` all cores) fit the
+    held-out folds, the candidate effects and the effect sets, with the same numbers as
+    one; switch the persistent compilation cache on
     (:func:`~sk_offwhite.enable_compilation_cache`) so that they share compiled programs.
     """
 
@@ -233,6 +234,10 @@ def held_out_splits(settings: LoopSettings, n_samples: int) -> list:
     return [(np.arange(cut), np.arange(cut, n_samples))]
 
 
+FIT_ERRORS = (ValueError, TypeError, FloatingPointError, np.linalg.LinAlgError)
+"""What a failing fit raises: :func:`_attempt` turns these into lines of the report."""
+
+
 def _cv_rmse(est, u, z, settings: LoopSettings) -> float:
     """Mean held-out simulation RMSE over the blocks of :func:`held_out_splits`, the folds
     fitted by ``settings.n_jobs`` processes (a fold whose fit fails scores ``inf``)."""
@@ -248,7 +253,7 @@ def _fold_rmse(est, u, z, train, test, init_window: int) -> float:
     warning) when the fit fails."""
     try:
         est.fit(u[train], z[train], sample_index=train)
-    except (ValueError, TypeError, FloatingPointError, np.linalg.LinAlgError) as error:
+    except FIT_ERRORS as error:
         warnings.warn(f"a fold's fit failed and scores inf: {error}", UserWarning, stacklevel=2)
         return np.inf
     return -held_out_rmse(init_window)(est, u[test], z[test])
@@ -307,10 +312,6 @@ def _attempt(failures: list, label: str, function, *args):
     return value
 
 
-FIT_ERRORS = (ValueError, TypeError, FloatingPointError, np.linalg.LinAlgError)
-"""What a failing fit raises: :func:`_attempt` turns these into lines of the report."""
-
-
 def _trying(function, *args):
     """``(function(*args), None)``, or ``(None, message)`` when it raises a fit error."""
     try:
@@ -327,10 +328,10 @@ def _attempt_all(failures: list, calls, n_jobs) -> list:
     def progress(k, label):
         logger.info("  %s (%d of %d)", label, k, len(calls))
 
-    jobs = launch(_trying, [call[1:] for call in calls], n_jobs)
-    outcomes = gather(jobs, labels, progress)
-    failures.extend(f"{label}: {error}" for label, (_, error) in zip(labels, outcomes, strict=True)
-                    if error is not None)  # fmt: skip
+    outcomes = gather(launch(_trying, [call[1:] for call in calls], n_jobs), labels, progress)
+    for label, (_, error) in zip(labels, outcomes, strict=True):
+        if error is not None:
+            failures.append(f"{label}: {error}")
     return [value for value, _ in outcomes]
 
 
