@@ -11,7 +11,7 @@ from sk_offwhite import GreyBoxSparseRegressor, fit_gamma_path
 from sk_offwhite._parallel import gather, launch
 from sk_offwhite.datasets import make_leaky_tank
 from sk_offwhite.loop import LoopSettings, close_the_loop
-from sk_offwhite.loop._loop import _attempt_all
+from sk_offwhite.loop._loop import _attempt_all, _fold_rmse
 
 
 @pytest.mark.parametrize("n_jobs", [None, 2])
@@ -67,3 +67,15 @@ def test_the_loop_with_workers_chooses_and_scores_as_in_one_process(tank):
     assert [e.name for e in one.effects] == [e.name for e in two.effects]
     assert one.selection == two.selection and one.single_fits == two.single_fits
     assert one.cv_errors == two.cv_errors and one.failures == two.failures
+
+
+class _Broken:
+    def fit(self, u, z, sample_index=None):
+        raise RuntimeError("the solver ran out of memory")
+
+
+def test_a_fold_that_fails_with_any_error_scores_inf_and_says_why():
+    u, z = np.zeros((20, 1)), np.zeros((20, 1))
+    with pytest.warns(UserWarning, match="RuntimeError: the solver ran out of memory"):
+        score = _fold_rmse(_Broken(), u, z, np.arange(10), np.arange(10, 20), 2)
+    assert score == np.inf

@@ -250,11 +250,16 @@ def _cv_rmse(est, u, z, settings: LoopSettings) -> float:
 
 def _fold_rmse(est, u, z, train, test, init_window: int) -> float:
     """Held-out RMSE of ``test`` (one block) after fitting ``train``; ``inf`` (and a
-    warning) when the fit fails."""
+    warning naming the error) when the fit raises anything, as ``cross_val_score`` scores a
+    failed fold with ``error_score``."""
     try:
         est.fit(u[train], z[train], sample_index=train)
-    except FIT_ERRORS as error:
-        warnings.warn(f"a fold's fit failed and scores inf: {error}", UserWarning, stacklevel=2)
+    except Exception as error:  # any failure of one fold ranks the model last
+        warnings.warn(
+            f"a fold's fit failed and scores inf: {type(error).__name__}: {error}",
+            UserWarning,
+            stacklevel=2,
+        )
         return np.inf
     return -held_out_rmse(init_window)(est, u[test], z[test])
 
