@@ -6,7 +6,7 @@ import jax.numpy as jnp
 import numpy as np
 from sklearn.utils import Bunch, check_random_state
 
-from sk_offwhite._physics import Parameter, PhysicsModel
+from sk_offwhite._physics import PhysicsModel
 from sk_offwhite.datasets._common import (
     _bunch,
     _check_n_samples,
@@ -16,7 +16,7 @@ from sk_offwhite.datasets._common import (
     _noise_stds,
     _rollout,
 )
-from sk_offwhite.datasets._synthetic import POSITIVE
+from sk_offwhite.datasets._mechanical import _second_order_physics
 
 __all__ = ["make_backlash_servo", "play"]
 
@@ -42,21 +42,12 @@ def play(u, width: float, start: float | None = None) -> np.ndarray:
     return out
 
 
+SERVO_KINDS = {"states": ("angle", "rate"), "inputs": ("angle",)}
+
+
 def _servo_physics(values: dict) -> PhysicsModel:
-    return PhysicsModel.from_ode(
-        servo_rhs,
-        SERVO_DT,
-        output=0,
-        parameters={name: Parameter(v, POSITIVE) for name, v in values.items()},
-        n_states=2,
-        n_inputs=1,
-        method="euler",
-        state_names=("theta", "omega"),
-        input_names=("u",),
-        output_names=("theta",),
-        state_kinds=("angle", "rate"),
-        input_kinds=("angle",),
-    )
+    names = ("theta", "omega", "u")
+    return _second_order_physics(servo_rhs, values, (0.0, 0.0), SERVO_DT, names, SERVO_KINDS)
 
 
 def _servo_record(rng, n: int, stds) -> tuple:
@@ -125,7 +116,7 @@ def make_backlash_servo(
         _servo_record(rng, n, stds) for _ in range(2)
     )
     contribution = SERVO_DT * SERVO_THETA["k"] * (played[:-1] - est[0][:-1, 0])
-    kinds = {"states": ("angle", "rate"), "inputs": ("angle",)}
+    kinds = {key: tuple(value) for key, value in SERVO_KINDS.items()}
     hidden = {
         "target": "input",
         "equation": 1,

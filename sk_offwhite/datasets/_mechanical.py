@@ -78,8 +78,10 @@ def _generate(spec: _Generator, n_samples, noise_std, random_state, process_nois
     return data
 
 
-def _second_order_physics(rhs, values, x0, dt, names) -> PhysicsModel:
-    """Euler-discretised two-state physics measuring its first state (``names``: x, v, u)."""
+def _second_order_physics(rhs, values, x0, dt, names, kinds=None) -> PhysicsModel:
+    """Euler-discretised two-state physics measuring its first state (``names``: x, v, u;
+    ``kinds``: ``{"states": ..., "inputs": ...}``, declared when given)."""
+    kinds = kinds or {}
     return PhysicsModel.from_ode(
         rhs,
         dt,
@@ -92,6 +94,8 @@ def _second_order_physics(rhs, values, x0, dt, names) -> PhysicsModel:
         state_names=names[:2],
         input_names=names[2:],
         output_names=names[:1],
+        state_kinds=kinds.get("states"),
+        input_kinds=kinds.get("inputs"),
     )
 
 

@@ -305,16 +305,7 @@ def _set_cv_alone(board, effects, warm, u, z, settings):
 def _attempt(failures: list, label: str, function, *args):
     """``function(*args)``; a failure becomes a line of ``failures`` (and ``None``), and
     warnings are re-issued prefixed with ``label``."""
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            value = function(*args)
-        except FIT_ERRORS as error:
-            failures.append(f"{label}: {error}")
-            value = None
-    for warning in caught:
-        warnings.warn(f"{label}: {warning.message}", warning.category, stacklevel=3)
-    return value
+    return _attempt_all(failures, [(label, function, *args)], None)[0]
 
 
 def _trying(function, *args):
@@ -327,13 +318,15 @@ def _trying(function, *args):
 
 def _attempt_all(failures: list, calls, n_jobs) -> list:
     """:func:`_attempt` of each ``(label, function, *args)`` of ``calls``, the calls run by
-    ``n_jobs`` processes; values in order (``None`` where a call failed)."""
+    ``n_jobs`` processes; values in order (``None`` where a call failed). Each value is
+    logged as it arrives when there are several."""
     labels = [call[0] for call in calls]
 
     def progress(k, label):
         logger.info("  %s (%d of %d)", label, k, len(calls))
 
-    outcomes = gather(launch(_trying, [call[1:] for call in calls], n_jobs), labels, progress)
+    jobs = launch(_trying, [call[1:] for call in calls], n_jobs)
+    outcomes = gather(jobs, labels, progress if len(calls) > 1 else None)
     for label, (_, error) in zip(labels, outcomes, strict=True):
         if error is not None:
             failures.append(f"{label}: {error}")
