@@ -283,7 +283,7 @@ monitoring.register_event_duration_secs_listener(
 sys.path.insert(0, {examples!r})
 import cascaded_tanks_loop
 start = time.perf_counter()
-cascaded_tanks_loop.main(["--out", {out!r}, "--quiet", "--no-cache"])
+cascaded_tanks_loop.main(["--out", {out!r}, "--quiet", "--no-cache", "--n-jobs", "1"])
 print(json.dumps({{"total": time.perf_counter() - start,
        "compile": seconds["/jax/core/compile/backend_compile_duration"],
        "trace": seconds["/jax/core/compile/jaxpr_trace_duration"],
@@ -293,7 +293,8 @@ print(json.dumps({{"total": time.perf_counter() - start,
 
 
 def main_job(out: Path) -> dict:
-    """The README's main job in a fresh process, split by ``jax.monitoring``."""
+    """The README's main job in a fresh process, split by ``jax.monitoring``: in one process
+    (``--n-jobs 1``), since the monitoring events of worker processes are not seen here."""
     code = MAIN_JOB.format(examples=str(HERE.parent / "examples"), out=str(out / "main_job"))
     result = subprocess.run(
         [sys.executable, "-W", "ignore", "-c", code], capture_output=True, text=True, check=True
