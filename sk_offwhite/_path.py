@@ -166,12 +166,14 @@ def _blocks(index: np.ndarray) -> list[np.ndarray]:
 
 def _fold_errors(est, u, z, train, test, gammas, init_window) -> np.ndarray:
     """Held-out errors at every :math:`\\gamma` of one fold (fits on ``train`` only), shape
-    ``(n_gammas, 2)``: in output standard deviations and in the output's units."""
+    ``(n_gammas, 2)``: in output standard deviations and in the output's units; ``inf``
+    where the fold's fit failed (with a warning that names the error)."""
     errors = []
     for gamma in gammas:
         try:
             est.set_params(gamma=gamma).fit(u[train], z[train], sample_index=train)
-        except ValueError:
+        except ValueError as error:
+            warnings.warn(f"fit_gamma_path: a fold's fit at gamma={gamma:.3g} failed ({error})")
             errors.append([np.inf, np.inf])
             continue
         scores = [_block_errors(est, u, z, block, init_window) for block in _blocks(test)]

@@ -16,6 +16,7 @@ from sklearn.model_selection import KFold, cross_val_score
 
 from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel, fit_gamma_path, gamma_grid
 from sk_offwhite._optim import SolverResult
+from sk_offwhite._path import _fold_errors
 from sk_offwhite._sparsity import _no_worse_than, _Stage
 from sk_offwhite.loop import held_out_rmse
 
@@ -201,3 +202,17 @@ def test_path_cv_in_output_units_is_what_refitting_the_folds_scores(record):
     )
     assert path.cv_rmse.shape == path.cv_error.shape == (3, 3)
     np.testing.assert_allclose(path.cv_rmse[path.best_index], -scores, rtol=1e-12)
+
+
+class _FailingFit(GreyBoxSparseRegressor):
+    def fit(self, u, z, **params):
+        raise ValueError("made to fail")
+
+
+def test_a_fold_fit_that_fails_scores_inf_with_a_warning(record):
+    u, z = record
+    est = _FailingFit(_physics(), ps.PolynomialLibrary(degree=2), max_iter=200)
+    train, test = np.arange(100, N_SAMPLES), np.arange(100)
+    with pytest.warns(UserWarning, match=r"fold's fit at gamma=0.01 failed \(made to fail\)"):
+        errors = _fold_errors(est, u, z, train, test, [1e-2, 1e-3], 20)
+    assert errors.shape == (2, 2) and np.all(np.isinf(errors))
