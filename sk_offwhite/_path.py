@@ -173,7 +173,8 @@ def _fold_errors(est, u, z, train, test, gammas, init_window) -> np.ndarray:
         try:
             est.set_params(gamma=gamma).fit(u[train], z[train], sample_index=train)
         except ValueError as error:
-            warnings.warn(f"fit_gamma_path: a fold's fit at gamma={gamma:.3g} failed ({error})")
+            message = f"fit_gamma_path: a fold's fit at gamma={gamma:.3g} failed ({error})"
+            warnings.warn(message, stacklevel=2)
             errors.append([np.inf, np.inf])
             continue
         scores = [_block_errors(est, u, z, block, init_window) for block in _blocks(test)]
