@@ -9,7 +9,8 @@ augmented physics (``init_window`` protocol, 50 samples), the model the loop cho
 the failures and the wall time. Everything is chosen on the estimation record; the
 validation record is only scored.
 
-Run: ``python benchmarks/bench_loop_generators.py [--short] [--delta] [NAME ...]``.
+Run: ``python benchmarks/bench_loop_generators.py [--short] [--delta]
+[--lm-scaling {floor,column-max}] [NAME ...]``.
 """
 
 from __future__ import annotations
@@ -90,10 +91,10 @@ def _parameter_error(result, data) -> float:
     )
 
 
-def run(name: str, short: bool, delta: bool) -> None:
+def run(name: str, short: bool, delta: bool, lm_scaling: str = "floor") -> None:
     make, length, kind, parameter = SYSTEMS[name]
     data = make(random_state=0, **({"n_samples": length} if short else {}))
-    settings = LoopSettings(fit_delta=delta)
+    settings = LoopSettings(fit_delta=delta, lm_scaling=lm_scaling)
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -125,9 +126,13 @@ def main(argv=None) -> None:
     parser.add_argument("names", nargs="*", choices=[*SYSTEMS, []], default=[])
     parser.add_argument("--short", action="store_true", help="the test suite's lengths")
     parser.add_argument("--delta", action="store_true", help="also fit the sparse corrections")
+    parser.add_argument(
+        "--lm-scaling", choices=("floor", "column-max"), default="floor",
+        help="Levenberg-Marquardt's scaling in every fit (LoopSettings.lm_scaling)",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     for name in args.names or SYSTEMS:
-        run(name, args.short, args.delta)
+        run(name, args.short, args.delta, args.lm_scaling)
         jax.clear_caches()  # each candidate compiles its own program: release them
 
 

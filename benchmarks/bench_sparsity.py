@@ -9,8 +9,10 @@ Sections (all by default, or name some):
   Delta's 3 terms.
 * ``units``: the Cascaded Tanks estimation record with the README's physics (k4 fixed) and
   a degree-2 polynomial dictionary, in volts and with u, z, the states and the physics
-  rescaled by 1e-3 and 1e3 (the same physics in other units), at one dimensionless gamma
-  (the CV choice in volts): supports and R^2 on the estimation record.
+  rescaled by 1e-3 and 1e3 (the same physics in other units): the support path (default
+  grid, gamma chosen by 3-fold CV on the record) in each unit, under both of
+  Levenberg-Marquardt's scalings (``lm_scaling``); chosen gamma, support and R^2 on the
+  estimation record.
 
 Run: ``python benchmarks/bench_sparsity.py [vehicle] [units] [--seeds N]``.
 """
@@ -88,17 +90,23 @@ def units() -> None:
     data = load_cascaded_tanks()
     physics = cascaded_tanks_physics(fixed={"k4": 0.05})
     library = ps.PolynomialLibrary(degree=2)
-    chosen = fit_gamma_path(
-        GreyBoxSparseRegressor(physics, library, max_iter=300), data.u_est, data.z_est, cv=3
-    )
-    gamma = chosen.best_gamma
-    print(f"Cascaded Tanks, gamma by 3-fold CV in volts: {gamma:.3g}\n{chosen.summary()}")
-    for scale in (1.0, 1e-3, 1e3):
-        est = GreyBoxSparseRegressor(in_units(physics, scale), library, gamma=gamma, max_iter=300)
-        est.fit(data.u_est * scale, data.z_est * scale)
-        terms = np.flatnonzero(est.support_.ravel()).tolist()
-        r2 = est.score(data.u_est * scale, data.z_est * scale)
-        print(f"scale {scale:g}: {est.n_nonzero_} of {est.coef_.size} terms {terms}, R^2 {r2:.6f}")
+    for rule in ("floor", "column-max"):
+        print(f"lm_scaling={rule!r}: the support path (default grid, 3-fold CV) in each unit")
+        for scale in (1.0, 1e-3, 1e3):
+            start = time.perf_counter()
+            est = GreyBoxSparseRegressor(
+                in_units(physics, scale), library, max_iter=300, lm_scaling=rule
+            )
+            path = fit_gamma_path(est, data.u_est * scale, data.z_est * scale, cv=3)
+            terms = np.flatnonzero(est.support_.ravel()).tolist()
+            r2 = est.score(data.u_est * scale, data.z_est * scale)
+            seconds = time.perf_counter() - start
+            print(
+                f"scale {scale:g}: gamma {path.best_gamma:.3g}, {est.n_nonzero_} of "
+                f"{est.coef_.size} terms {terms}, R^2 {r2:.6f} ({seconds:.0f} s)\n"
+                f"{path.summary()}",
+                flush=True,
+            )
 
 
 def main(argv=None) -> None:

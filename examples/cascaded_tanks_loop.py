@@ -67,6 +67,13 @@ def main(argv=None):
         default=2,
         help="processes that fit the cross-validation folds (default 2; 1: all in this one)",
     )
+    parser.add_argument(
+        "--lm-scaling",
+        choices=("floor", "column-max"),
+        default="floor",
+        help="Levenberg-Marquardt's scaling in every fit (LoopSettings.lm_scaling; "
+        "column-max: iterates that do not depend on the units)",
+    )
     args = parser.parse_args(argv)
     if not args.no_cache:
         enable_compilation_cache()
@@ -83,6 +90,7 @@ def main(argv=None):
         max_candidates=3 if args.quick else None,
         selection=args.selection,
         n_jobs=args.n_jobs,
+        lm_scaling=args.lm_scaling,
     )
     start = time.perf_counter()
     result = close_the_loop(physics, tanks_library(), data.u_est, data.z_est, settings=settings)

@@ -181,6 +181,14 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         to 400 free variables. With a horizon and over 100 free variables LM builds the
         Jacobian by window colouring (``G + 2 n_x`` tangents for ``G`` global variables,
         however many windows) and solves sparse normal equations.
+    lm_scaling : {'floor', 'column-max'}, default='floor'
+        Levenberg-Marquardt's scaling :math:`D` in :math:`(J^TJ + \mu D)s = -J^Tr`.
+        ``'floor'``: :math:`\mathrm{diag}(J^TJ)` plus :math:`10^{-9}` of its largest entry,
+        one floor for all variables, so the iterates (not only the optimum) depend on the
+        units of the states, inputs and dictionary columns. ``'column-max'``: MINPACK's
+        running maximum of :math:`\mathrm{diag}(J^TJ)` over the iterations, under which
+        rescaling any of them leaves the iterates the same up to rounding: the fits that
+        stop short of a minimum or that settle in one of several are then also unit-free.
     optimizer : optax.GradientTransformation, default=None
         Used by the optax solver; ``None`` is Adam (cosine-decayed from 1e-2) behind global
         norm clipping at 1.
@@ -270,6 +278,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         "l1_smoothing": [Interval(Real, 0, None, closed="neither")],
         "shooting_weight": [Interval(Real, 0, None, closed="left")],
         "solver": [StrOptions({"auto", "lm", "optax"})],
+        "lm_scaling": [StrOptions({"floor", "column-max"})],
         "optimizer": "no_validation",
         "max_iter": [Interval(Integral, 1, None, closed="left")],
         "tol": [Interval(Real, 0, None, closed="left")],
@@ -294,6 +303,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         l1_smoothing: float = 100.0,
         shooting_weight: float = 10.0,
         solver: str = "auto",
+        lm_scaling: str = "floor",
         optimizer=None,
         max_iter: int = 200,
         tol: float = 1e-10,
@@ -314,6 +324,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         self.l1_smoothing = l1_smoothing
         self.shooting_weight = shooting_weight
         self.solver = solver
+        self.lm_scaling = lm_scaling
         self.optimizer = optimizer
         self.max_iter = max_iter
         self.tol = tol
@@ -463,7 +474,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     def _solve(self, physics, basis, model, records, reference_only=False):
         weights = (self.gamma, self.lam, self.nu, self.shooting_weight, self.l1_smoothing)
         options = SolverOptions(
-            self.solver, self._optimizer(), self.max_iter, self.tol, self.verbose
+            self.solver, self._optimizer(), self.max_iter, self.tol, self.verbose, self.lm_scaling
         )
         outcome = fit_records(
             physics,
@@ -488,8 +499,8 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         settings = (
             id(physics), id(self.library), physics.parameter_values().tobytes(),
             np.asarray(physics.x0, float).tobytes(), self.horizon, self._delta_states(physics),
-            self.lam, self.nu, self.shooting_weight, self.solver, self.max_iter, self.tol,
-            self.random_state,
+            self.lam, self.nu, self.shooting_weight, self.solver, self.lm_scaling, self.max_iter,
+            self.tol, self.random_state,
         )  # fmt: skip
         digest.update(repr(settings).encode())
         return digest.hexdigest()

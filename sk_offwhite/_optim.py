@@ -116,6 +116,7 @@ class _LMState(NamedTuple):
     jacobian: jax.Array
     cost: jax.Array
     anchor: jax.Array
+    diag: jax.Array
 
 
 def _anchored(problem: Problem, anchor) -> Problem:
@@ -123,15 +124,20 @@ def _anchored(problem: Problem, anchor) -> Problem:
     return problem._replace(weights=problem.weights._replace(l1_anchor=anchor))
 
 
+LM_SCALE_FLOOR = 1e-9
+r"""With ``damping='floor'``, Marquardt's scaling :math:`D = \mathrm{diag}(J^TJ)` gets this
+fraction of its largest entry added, so a variable the cost barely sees is not thrown by a
+huge step."""
+
+LM_DAMPING_RULES = ("floor", "column-max")
+"""The rules for Marquardt's scaling :math:`D` (:func:`damped_diagonal`)."""
+
+
 def _omega(free, problem: Problem, layout: Layout):
     r""":math:`\Omega` at the free vector ``free`` (an empty array without a dictionary)."""
     params = layout.unflatten(problem.base.at[problem.free_index].set(free))
     return params.get("omega", jnp.zeros(0))
 
-
-LM_SCALE_FLOOR = 1e-9
-r"""Marquardt's scaling :math:`D = \mathrm{diag}(J^TJ)` gets this fraction of its largest
-entry added, so a variable the cost barely sees is not thrown by a huge step."""
 
 LINEARIZE_MAX_FREE = 10
 """Up to this many free variables the forward-mode Jacobian pushes the tangents through one
@@ -161,13 +167,14 @@ def _lm_linearise(free, problem, *, model, layout, forward):
     fun = partial(free_residuals, problem=anchored, model=model, layout=layout)
     r, jac = linearised(fun, free, forward)
     cost = r @ r + majoriser_constant(anchor, problem.omega_free, anchored.weights)
-    return _LMState(free, r, jac, cost, anchor)
+    return _LMState(free, r, jac, cost, anchor, jnp.sum(jac**2, axis=0))
 
 
 @partial(jax.jit, static_argnames=("model", "layout"))
-def _lm_trial(state: _LMState, damping, problem, *, model, layout):
+def _lm_trial(state: _LMState, damping, scale, problem, *, model, layout):
     r"""Damped Gauss-Newton step :math:`(J^TJ + \mu D)\,s = -J^Tr`, projected on the box,
-    and the majorised cost there at the current anchor (a forward simulation only).
+    and the majorised cost there at the current anchor (a forward simulation only);
+    ``scale`` is :math:`D` or ``None`` (see :func:`damped_diagonal`).
 
     Variables held at a bound by the gradient (at the lower bound with :math:`J^Tr > 0`,
     at the upper with :math:`J^Tr < 0`) take no part in the step: the others solve the
@@ -179,7 +186,7 @@ def _lm_trial(state: _LMState, damping, problem, *, model, layout):
     gradient = state.jacobian.T @ state.residual
     moving = ~held_at_bound(state.free, gradient, problem.lower, problem.upper)
     jtj = jnp.where(jnp.outer(moving, moving), state.jacobian.T @ state.jacobian, 0.0)
-    system = jtj + jnp.diag(damped_diagonal(jnp.diag(jtj), damping, moving, jnp))
+    system = jtj + jnp.diag(damped_diagonal(jnp.diag(jtj), damping, moving, jnp, scale))
     step = jnp.linalg.solve(system, jnp.where(moving, -gradient, 0.0))
     candidate = jnp.clip(state.free + step, problem.lower, problem.upper)
     return candidate, majorised_cost(candidate, state.anchor, problem, model, layout)
@@ -191,13 +198,28 @@ def held_at_bound(free, gradient, lower, upper):
     return ((free <= lower) & (gradient > 0)) | ((free >= upper) & (gradient < 0))
 
 
-def damped_diagonal(diag, damping, moving, xp):
-    r"""Marquardt's damping :math:`\mu D`, :math:`D = \mathrm{diag}(J^TJ) + \epsilon
-    \max\mathrm{diag}(J^TJ)` (:data:`LM_SCALE_FLOOR`), with 1 on the rows of variables
-    that are not ``moving`` (their rows and columns of :math:`J^TJ` are zero, so their step
-    is zero); ``xp`` is ``numpy`` or ``jax.numpy``."""
-    floor = LM_SCALE_FLOOR * xp.maximum(xp.max(diag), 1e-30)
-    return xp.where(moving, damping * (diag + floor), 1.0)
+def damped_diagonal(diag, damping, moving, xp, scale=None):
+    r"""Marquardt's damping :math:`\mu D`, with 1 on the rows of variables that are not
+    ``moving`` (their rows and columns of :math:`J^TJ` are zero, so their step is zero);
+    ``xp`` is ``numpy`` or ``jax.numpy``.
+
+    ``scale=None`` (``damping='floor'``): :math:`D = \mathrm{diag}(J^TJ) + \epsilon
+    \max\mathrm{diag}(J^TJ)` (:data:`LM_SCALE_FLOOR`; ``diag`` is that of the moving
+    variables). The floor is one number for all variables, so the steps depend on their
+    units: a variable in units :math:`10^3` times smaller has a column :math:`10^3` times
+    larger and raises everyone else's damping.
+
+    ``scale`` given (``damping='column-max'``): :math:`D_i` = ``scale``:math:`_i`, the
+    largest :math:`(J^TJ)_{ii}` seen so far in the run (MINPACK's scaling, see
+    :func:`lm_loop`), 1 where no residual has depended on variable :math:`i` yet.
+    :math:`D_i` carries the units of :math:`1/x_i^2`, so rescaling a variable (a state in
+    other units, a dictionary column times a constant) leaves the iterates the same up to
+    rounding, and a variable whose column has shrunk since it was largest keeps that
+    damping, so it is not thrown by a huge step."""
+    if scale is None:
+        floor = LM_SCALE_FLOOR * xp.maximum(xp.max(diag), 1e-30)
+        return xp.where(moving, damping * (diag + floor), 1.0)
+    return xp.where(moving & (scale > 0), damping * scale, 1.0)
 
 
 def majorised_cost(free, anchor, problem, model, layout):
@@ -216,6 +238,7 @@ def levenberg_marquardt(
     max_iter: int,
     tol: float,
     verbose: int = 0,
+    damping: str = "floor",
 ) -> SolverResult:
     r"""Projected Levenberg-Marquardt on :math:`\|r(\cdot)\|^2` with the dense Jacobian
     (see :func:`lm_loop` for the steps and stopping rules)."""
@@ -226,18 +249,27 @@ def levenberg_marquardt(
     def linearise(free):
         return _lm_linearise(free, problem, forward=forward, **static)
 
-    def trial(state, damping):
-        candidate, cost = _lm_trial(state, damping, problem, **static)
+    def trial(state, damping, scale):
+        scale = None if scale is None else jnp.asarray(scale)
+        candidate, cost = _lm_trial(state, damping, scale, problem, **static)
         return candidate, float(cost)
 
-    return lm_loop(linearise, trial, free0, problem, max_iter=max_iter, tol=tol, verbose=verbose)
+    return lm_loop(
+        linearise, trial, free0, problem, max_iter=max_iter, tol=tol, verbose=verbose,
+        damping=damping,
+    )  # fmt: skip
 
 
-def lm_loop(linearise, trial, free0, problem, *, max_iter, tol, verbose=0) -> SolverResult:
+def lm_loop(
+    linearise, trial, free0, problem, *, max_iter, tol, verbose=0, damping="floor"
+) -> SolverResult:
     r"""The Levenberg-Marquardt iteration over a linearisation and a trial step.
 
-    ``linearise(free)`` returns a state with ``free``, ``residual`` and ``cost`` at
-    ``free``; ``trial(state, damping)`` the damped, projected candidate and its cost.
+    ``linearise(free)`` returns a state with ``free``, ``residual``, ``cost`` and ``diag``
+    (:math:`\mathrm{diag}(J^TJ)`) at ``free``; ``trial(state, damping, scale)`` the
+    damped, projected candidate and its cost, where ``scale`` is ``None`` with
+    ``damping='floor'`` and the elementwise largest ``diag`` of the run so far with
+    ``damping='column-max'`` (:func:`damped_diagonal`).
 
     Stops when a nearly undamped (Gauss-Newton, damping below ``1``) accepted step lowers
     the cost by less than ``tol`` (relative), when the cost reaches :data:`ROUNDING_COST`
@@ -246,13 +278,17 @@ def lm_loop(linearise, trial, free0, problem, *, max_iter, tol, verbose=0) -> So
     under heavy damping only means the step was short, not that the fit has converged.
     """
     state = linearise(free0)
+    if damping not in LM_DAMPING_RULES:
+        raise ValueError(f"damping must be one of {LM_DAMPING_RULES}, got {damping!r}.")
+    scale = np.asarray(state.diag) if damping == "column-max" else None
     damping = 1e-3
     history, message, converged = [float(state.cost)], "max_iter reached", False
     for iteration in range(1, max_iter + 1):
         previous = history[-1]
-        candidate, trial_cost = trial(state, damping)
+        candidate, trial_cost = trial(state, damping, scale)
         if np.isfinite(trial_cost) and trial_cost < previous:
             state = linearise(candidate)
+            scale = None if scale is None else np.maximum(scale, np.asarray(state.diag))
             history.append(float(state.cost))
             _report(verbose, iteration, history[-1], damping)
             small = previous - history[-1] <= tol * max(previous, 1e-300)

@@ -201,6 +201,7 @@ class SolverOptions(NamedTuple):
     max_iter: int
     tol: float
     verbose: int
+    lm_scaling: str = "floor"
 
 
 class FitOutcome(NamedTuple):
@@ -327,7 +328,9 @@ def _fit_once(settings: FitSettings, warm=None, sparse=None, reference=None) -> 
     )
 
 
-def solve(model, layout, problem, free0, *, solver, optimizer, max_iter, tol, verbose):
+def solve(
+    model, layout, problem, free0, *, solver, optimizer, max_iter, tol, verbose, lm_scaling="floor"
+):
     """Run the chosen solver.
 
     ``'auto'`` picks Levenberg-Marquardt (forward-mode Jacobians) with multiple-shooting
@@ -335,6 +338,8 @@ def solve(model, layout, problem, free0, *, solver, optimizer, max_iter, tol, ve
     gradients) for larger problems without windows. With windows and more than
     :data:`STRUCTURED_MIN_FREE` free variables, Levenberg-Marquardt uses the coloured
     Jacobian and sparse normal equations of :mod:`~sk_offwhite._structured`.
+    ``lm_scaling`` is Levenberg-Marquardt's rule for :math:`D`
+    (:func:`~sk_offwhite._optim.damped_diagonal`).
     """
     n_free = free0.shape[0]
     windows = bool(np.any(np.asarray(problem.segments.linked) > 0))
@@ -342,7 +347,7 @@ def solve(model, layout, problem, free0, *, solver, optimizer, max_iter, tol, ve
     if solver == "lm" or (solver == "auto" and (windows or n_free <= LM_MAX_FREE)):
         coloured = windows and n_free > STRUCTURED_MIN_FREE
         method = structured_levenberg_marquardt if coloured else levenberg_marquardt
-        return method(free0, problem, model, layout, **options)
+        return method(free0, problem, model, layout, damping=lm_scaling, **options)
     return run_optax(free0, problem, model, layout, optimizer, **options)
 
 

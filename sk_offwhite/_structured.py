@@ -155,6 +155,7 @@ class _State(NamedTuple):
     gradient: np.ndarray
     cost: float
     anchor: jax.Array
+    diag: np.ndarray
 
 
 @partial(jax.jit, static_argnames=("model", "layout"))
@@ -186,6 +187,7 @@ def _linearise(free, problem, model, layout, plan: Colouring) -> _State:
     shape = (plan.n_rows, plan.seeds.shape[0])
     jac = sp.csr_matrix((values, (plan.rows, plan.cols)), shape=shape)
     jac_g, jac_l = jac[:, plan.glob].toarray(), jac[:, plan.local].tocsc()
+    diag = np.asarray(jac.multiply(jac).sum(axis=0)).ravel()
     return _State(
         np.asarray(free),
         r,
@@ -195,10 +197,11 @@ def _linearise(free, problem, model, layout, plan: Colouring) -> _State:
         jac.T @ r,
         float(cost),
         anchor,
+        diag,
     )
 
 
-def _damped_step(state: _State, damping: float, plan: Colouring, moving) -> np.ndarray:
+def _damped_step(state: _State, damping: float, scale, plan: Colouring, moving) -> np.ndarray:
     r"""Solution of :math:`(J^TJ + \mu D)s = -J^Tr` (variables not ``moving`` stay; see
     :func:`~sk_offwhite._optim.damped_diagonal`) by eliminating the window starts: their
     block is banded (one window couples only to its neighbours), its LU has no fill, and
@@ -209,7 +212,7 @@ def _damped_step(state: _State, damping: float, plan: Colouring, moving) -> np.n
     normal_ll = sp.diags(keep_l) @ state.normal_ll @ sp.diags(keep_l)
     diag = np.empty(state.free.shape[0])
     diag[plan.glob], diag[plan.local] = np.diag(normal_gg), normal_ll.diagonal()
-    damped = damped_diagonal(diag, damping, moving, np)
+    damped = damped_diagonal(diag, damping, moving, np, scale)
     a_gg = normal_gg + np.diag(damped[plan.glob])
     a_ll = (normal_ll + sp.diags(damped[plan.local])).tocsc()
     rhs = np.where(moving, -state.gradient, 0.0)
@@ -222,19 +225,21 @@ def _damped_step(state: _State, damping: float, plan: Colouring, moving) -> np.n
     return step
 
 
-def _trial(state: _State, damping, problem, model, layout, plan: Colouring):
-    """Damped step, projected on the box, and its cost."""
+def _trial(state: _State, damping, scale, problem, model, layout, plan: Colouring):
+    """Damped step (``scale``: see :func:`~sk_offwhite._optim.damped_diagonal`), projected
+    on the box, and its cost."""
     lower, upper = np.asarray(problem.lower), np.asarray(problem.upper)
     moving = ~held_at_bound(state.free, state.gradient, lower, upper)
-    step = _damped_step(state, damping, plan, moving)
+    step = _damped_step(state, damping, scale, plan, moving)
     candidate = np.clip(state.free + step, lower, upper)
     cost = _cost(jnp.asarray(candidate), state.anchor, problem, model, layout)
     return candidate, float(cost)
 
 
 def structured_levenberg_marquardt(
-    free0, problem, model, layout, *, max_iter: int, tol: float, verbose: int = 0
-) -> SolverResult:
+    free0, problem, model, layout, *, max_iter: int, tol: float, verbose: int = 0,
+    damping: str = "floor",
+) -> SolverResult:  # fmt: skip
     """Levenberg-Marquardt of :func:`~sk_offwhite._optim.lm_loop` with the coloured
     Jacobian and sparse normal equations (module docstring)."""
     parts = jax.eval_shape(
@@ -253,9 +258,10 @@ def structured_levenberg_marquardt(
     def linearise(free):
         return _linearise(free, problem, model, layout, plan)
 
-    def trial(state, damping):
-        return _trial(state, damping, problem, model, layout, plan)
+    def trial(state, damping, scale):
+        return _trial(state, damping, scale, problem, model, layout, plan)
 
     return lm_loop(
-        linearise, trial, np.asarray(free0), problem, max_iter=max_iter, tol=tol, verbose=verbose
-    )
+        linearise, trial, np.asarray(free0), problem, max_iter=max_iter, tol=tol, verbose=verbose,
+        damping=damping,
+    )  # fmt: skip

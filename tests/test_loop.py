@@ -192,9 +192,15 @@ def test_max_candidates_caps_the_candidates_fitted(monkeypatch):
     assert trail == [("declared physics", 1.0)]
 
 
-def test_max_candidates_must_be_positive():
+def test_settings_are_checked_and_passed_to_every_fit():
     with pytest.raises(ValueError, match="max_candidates must be None or >= 1"):
         LoopSettings(max_candidates=0)
+    with pytest.raises(ValueError, match="lm_scaling must be 'floor' or 'column-max'"):
+        LoopSettings(lm_scaling="minpack")
+    from sk_offwhite.loop import _loop
+
+    settings = LoopSettings(lm_scaling="column-max")
+    assert _loop._estimator(None, settings).lm_scaling == "column-max"
 
 
 def test_shared_programs_find_the_same_leak():

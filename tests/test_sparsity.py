@@ -101,6 +101,21 @@ def test_rescaled_units_give_the_same_model(record, fitted, scale):
     assert in_units.coef_[0, column] * scale == pytest.approx(fitted.coef_[0, column], rel=1e-4)
 
 
+@pytest.mark.parametrize("scale", [1e-3, 1e3])
+def test_column_max_scaling_takes_the_same_solver_steps_in_any_units(record, scale):
+    # Marquardt's damping in each variable's own units (MINPACK's running maximum of
+    # diag(J^T J)): the iterates, not only the optimum, do not depend on the units; with
+    # the default floor (one number for all variables) they do
+    u, z = record
+    steps = {}
+    for rule in ("column-max", "floor"):
+        est = _estimator(gamma=1e-3, lm_scaling=rule)
+        volts = _quiet(clone(est).fit, u, z).loss_history_
+        other = _quiet(clone(est).fit, u * scale, z * scale).loss_history_
+        steps[rule] = volts.shape == other.shape and np.allclose(other, volts, rtol=1e-7)
+    assert steps == {"column-max": True, "floor": False}
+
+
 def test_rescaled_dictionary_column_gives_the_same_support(record, fitted):
     library = ps.CustomLibrary(
         library_functions=[lambda x: x, lambda x: 1e3 * x**2],

@@ -98,6 +98,8 @@ class LoopSettings:
     held-out folds, the candidate effects and the effect sets, with the same numbers as
     one; switch the persistent compilation cache on
     (:func:`~sk_offwhite.enable_compilation_cache`) so that they share compiled programs.
+    ``lm_scaling`` is every fit's Levenberg-Marquardt scaling (``'column-max'``: iterates
+    that do not depend on the units; see :class:`~sk_offwhite.GreyBoxSparseRegressor`).
     """
 
     gammas: tuple[float, ...] | None = None
@@ -121,10 +123,15 @@ class LoopSettings:
     selection: str = "cv"
     tail_fraction: float = 0.25
     n_jobs: int | None = None
+    lm_scaling: str = "floor"
 
     def __post_init__(self):
         if self.selection not in ("cv", "tail"):
             raise ValueError(f"selection must be 'cv' or 'tail', got {self.selection!r}.")
+        if self.lm_scaling not in ("floor", "column-max"):
+            raise ValueError(
+                f"lm_scaling must be 'floor' or 'column-max', got {self.lm_scaling!r}."
+            )
         if not 0.0 < self.tail_fraction < 1.0:
             raise ValueError(f"tail_fraction must be in (0, 1), got {self.tail_fraction!r}.")
         if self.max_candidates is not None and self.max_candidates < 1:
@@ -216,6 +223,7 @@ def _estimator(physics, settings, *, cv=False, **params) -> GreyBoxSparseRegress
         horizon=settings.cv_horizon if cv else settings.horizon,
         max_iter=settings.max_iter,
         init_window=settings.init_window,
+        lm_scaling=settings.lm_scaling,
         **params,
     )
 
