@@ -10,7 +10,7 @@ the failures and the wall time. Everything is chosen on the estimation record; t
 validation record is only scored.
 
 Run: ``python benchmarks/bench_loop_generators.py [--short] [--delta]
-[--lm-scaling {floor,column-max}] [NAME ...]``.
+[--lm-scaling {per-variable,global}] [NAME ...]``.
 """
 
 from __future__ import annotations
@@ -91,7 +91,7 @@ def _parameter_error(result, data) -> float:
     )
 
 
-def run(name: str, short: bool, delta: bool, lm_scaling: str = "floor") -> None:
+def run(name: str, short: bool, delta: bool, lm_scaling: str = "per-variable") -> None:
     make, length, kind, parameter = SYSTEMS[name]
     data = make(random_state=0, **({"n_samples": length} if short else {}))
     settings = LoopSettings(fit_delta=delta, lm_scaling=lm_scaling)
@@ -127,7 +127,7 @@ def main(argv=None) -> None:
     parser.add_argument("--short", action="store_true", help="the test suite's lengths")
     parser.add_argument("--delta", action="store_true", help="also fit the sparse corrections")
     parser.add_argument(
-        "--lm-scaling", choices=("floor", "column-max"), default="floor",
+        "--lm-scaling", choices=("global", "per-variable"), default="per-variable",
         help="Levenberg-Marquardt's scaling in every fit (LoopSettings.lm_scaling)",
     )  # fmt: skip
     args = parser.parse_args(argv)

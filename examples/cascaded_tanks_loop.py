@@ -69,10 +69,10 @@ def main(argv=None):
     )
     parser.add_argument(
         "--lm-scaling",
-        choices=("floor", "column-max"),
-        default="floor",
-        help="Levenberg-Marquardt's scaling in every fit (LoopSettings.lm_scaling; "
-        "column-max: iterates that do not depend on the units)",
+        choices=("global", "per-variable"),
+        default="per-variable",
+        help="Levenberg-Marquardt's scaling in every fit (LoopSettings.lm_scaling; default "
+        "per-variable, whose iterates do not depend on the units; global: the previous rule)",
     )
     args = parser.parse_args(argv)
     if not args.no_cache:

@@ -101,6 +101,13 @@ class Effect:
         """Physical kinds of the hidden states, given the model's input kinds."""
         return ("generic",) * len(self.hidden_states)
 
+    @property
+    def mechanism(self) -> str:
+        """What the effect models: variants of one mechanism (an overflow into one tank or
+        another) share it, and the loop puts at most one of them in a set (default: the
+        effect's name, its own mechanism)."""
+        return self.name
+
     def describe(self, state_names, output_names, values=None) -> str:
         """One line in words, naming the variables (``values``: fitted parameters, used
         where they change the wording)."""
@@ -187,6 +194,11 @@ class Overflow(Effect):
         if self.sink is not None:
             params[f"{self.name}_fraction"] = Parameter(self.fraction, (0.0, 1.0))
         return params
+
+    @property
+    def mechanism(self) -> str:
+        """An overflow of the state, wherever its excess goes."""
+        return f"overflow of state {self.state}"
 
     def apply_state(self, x, u, x_next, theta):
         excess = hinge(x_next[self.state] - theta[f"{self.name}_level"], self.sharpness)

@@ -181,14 +181,14 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         to 400 free variables. With a horizon and over 100 free variables LM builds the
         Jacobian by window colouring (``G + 2 n_x`` tangents for ``G`` global variables,
         however many windows) and solves sparse normal equations.
-    lm_scaling : {'floor', 'column-max'}, default='floor'
-        Levenberg-Marquardt's scaling :math:`D` in :math:`(J^TJ + \mu D)s = -J^Tr`.
-        ``'floor'``: :math:`\mathrm{diag}(J^TJ)` plus :math:`10^{-9}` of its largest entry,
-        one floor for all variables, so the iterates (not only the optimum) depend on the
-        units of the states, inputs and dictionary columns. ``'column-max'``: MINPACK's
-        running maximum of :math:`\mathrm{diag}(J^TJ)` over the iterations, under which
-        rescaling any of them leaves the iterates the same up to rounding: the fits that
-        stop short of a minimum or that settle in one of several are then also unit-free.
+    lm_scaling : {'per-variable', 'global'}, default='per-variable'
+        Levenberg-Marquardt's scaling :math:`D` in :math:`(J^TJ + \mu D)s = -J^Tr`:
+        :math:`\mathrm{diag}(J^TJ)` plus a floor of :math:`10^{-9}` times, with
+        ``'per-variable'``, the largest :math:`(J^TJ)_{ii}` that variable has had in the run,
+        so rescaling a state, an input or a dictionary column leaves the iterates the same
+        up to rounding (fits that stop short of a minimum, or that settle in one of
+        several, are unit-free too); with ``'global'`` (the previous rule), the largest
+        entry of all variables now, one floor for all, so the iterates depend on the units.
     optimizer : optax.GradientTransformation, default=None
         Used by the optax solver; ``None`` is Adam (cosine-decayed from 1e-2) behind global
         norm clipping at 1.
@@ -244,6 +244,9 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     loss_history_ : ndarray
         Cost after each accepted step. ``cost_``, ``n_iter_``, ``converged_`` and
         ``solver_message_`` describe the end of the fit.
+    fit_error_ : float
+        :math:`\sqrt{F}`, the RMS of the multi-step fit residuals in output standard
+        deviations at the solution (without the penalty and constraint terms).
     n_features_in_ : int
         Number of inputs. ``n_outputs_``: number of outputs.
 
@@ -278,7 +281,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         "l1_smoothing": [Interval(Real, 0, None, closed="neither")],
         "shooting_weight": [Interval(Real, 0, None, closed="left")],
         "solver": [StrOptions({"auto", "lm", "optax"})],
-        "lm_scaling": [StrOptions({"floor", "column-max"})],
+        "lm_scaling": [StrOptions({"per-variable", "global"})],
         "optimizer": "no_validation",
         "max_iter": [Interval(Integral, 1, None, closed="left")],
         "tol": [Interval(Real, 0, None, closed="left")],
@@ -303,7 +306,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         l1_smoothing: float = 100.0,
         shooting_weight: float = 10.0,
         solver: str = "auto",
-        lm_scaling: str = "floor",
+        lm_scaling: str = "per-variable",
         optimizer=None,
         max_iter: int = 200,
         tol: float = 1e-10,
@@ -568,6 +571,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         self.inner_params_ = {k: np.asarray(blocks[k], float) for k in model.inner_names}
         self.loss_history_ = np.asarray(result.history, float)
         self.cost_, self.n_iter_ = float(result.cost), int(result.n_iter)
+        self.fit_error_ = float(np.sqrt(result.fit))
         self.converged_, self.solver_message_ = bool(result.converged), result.message
         self._compiled = (basis, model)
 

@@ -125,11 +125,11 @@ def _anchored(problem: Problem, anchor) -> Problem:
 
 
 LM_SCALE_FLOOR = 1e-9
-r"""With ``damping='floor'``, Marquardt's scaling :math:`D = \mathrm{diag}(J^TJ)` gets this
-fraction of its largest entry added, so a variable the cost barely sees is not thrown by a
-huge step."""
+r"""Marquardt's scaling :math:`D = \mathrm{diag}(J^TJ)` gets this fraction of a largest
+entry added (:func:`damped_diagonal`), so a variable the cost barely sees is not thrown by
+a huge step."""
 
-LM_DAMPING_RULES = ("floor", "column-max")
+LM_DAMPING_RULES = ("per-variable", "global")
 """The rules for Marquardt's scaling :math:`D` (:func:`damped_diagonal`)."""
 
 
@@ -199,27 +199,27 @@ def held_at_bound(free, gradient, lower, upper):
 
 
 def damped_diagonal(diag, damping, moving, xp, scale=None):
-    r"""Marquardt's damping :math:`\mu D`, with 1 on the rows of variables that are not
-    ``moving`` (their rows and columns of :math:`J^TJ` are zero, so their step is zero);
-    ``xp`` is ``numpy`` or ``jax.numpy``.
+    r"""Marquardt's damping :math:`\mu D`, :math:`D = \mathrm{diag}(J^TJ) + \epsilon\,f`
+    (:data:`LM_SCALE_FLOOR`), with 1 on the rows of variables that are not ``moving``
+    (their rows and columns of :math:`J^TJ` are zero, so their step is zero) or that no
+    residual has depended on yet; ``xp`` is ``numpy`` or ``jax.numpy``. The floor keeps a
+    variable the cost barely sees from being thrown by a huge step.
 
-    ``scale=None`` (``damping='floor'``): :math:`D = \mathrm{diag}(J^TJ) + \epsilon
-    \max\mathrm{diag}(J^TJ)` (:data:`LM_SCALE_FLOOR`; ``diag`` is that of the moving
-    variables). The floor is one number for all variables, so the steps depend on their
+    ``scale=None`` (``lm_scaling='global'``): :math:`f = \max_j (J^TJ)_{jj}`, one floor
+    for all variables (``diag`` is that of the moving ones), so the steps depend on their
     units: a variable in units :math:`10^3` times smaller has a column :math:`10^3` times
     larger and raises everyone else's damping.
 
-    ``scale`` given (``damping='column-max'``): :math:`D_i` = ``scale``:math:`_i`, the
-    largest :math:`(J^TJ)_{ii}` seen so far in the run (MINPACK's scaling, see
-    :func:`lm_loop`), 1 where no residual has depended on variable :math:`i` yet.
-    :math:`D_i` carries the units of :math:`1/x_i^2`, so rescaling a variable (a state in
-    other units, a dictionary column times a constant) leaves the iterates the same up to
-    rounding, and a variable whose column has shrunk since it was largest keeps that
-    damping, so it is not thrown by a huge step."""
+    ``scale`` given (``lm_scaling='per-variable'``): :math:`f_i` = ``scale``:math:`_i`,
+    the largest :math:`(J^TJ)_{ii}` variable :math:`i` has had so far in the run
+    (:func:`lm_loop`). :math:`D_i` then carries the units of :math:`1/x_i^2` alone, so
+    rescaling a variable (a state in other units, a dictionary column times a constant)
+    leaves the iterates the same up to rounding."""
     if scale is None:
         floor = LM_SCALE_FLOOR * xp.maximum(xp.max(diag), 1e-30)
         return xp.where(moving, damping * (diag + floor), 1.0)
-    return xp.where(moving & (scale > 0), damping * scale, 1.0)
+    damped = damping * (diag + LM_SCALE_FLOOR * scale)
+    return xp.where(moving & (scale > 0), damped, 1.0)
 
 
 def majorised_cost(free, anchor, problem, model, layout):
@@ -238,7 +238,7 @@ def levenberg_marquardt(
     max_iter: int,
     tol: float,
     verbose: int = 0,
-    damping: str = "floor",
+    damping: str = "per-variable",
 ) -> SolverResult:
     r"""Projected Levenberg-Marquardt on :math:`\|r(\cdot)\|^2` with the dense Jacobian
     (see :func:`lm_loop` for the steps and stopping rules)."""
@@ -261,15 +261,15 @@ def levenberg_marquardt(
 
 
 def lm_loop(
-    linearise, trial, free0, problem, *, max_iter, tol, verbose=0, damping="floor"
+    linearise, trial, free0, problem, *, max_iter, tol, verbose=0, damping="per-variable"
 ) -> SolverResult:
     r"""The Levenberg-Marquardt iteration over a linearisation and a trial step.
 
     ``linearise(free)`` returns a state with ``free``, ``residual``, ``cost`` and ``diag``
     (:math:`\mathrm{diag}(J^TJ)`) at ``free``; ``trial(state, damping, scale)`` the
     damped, projected candidate and its cost, where ``scale`` is ``None`` with
-    ``damping='floor'`` and the elementwise largest ``diag`` of the run so far with
-    ``damping='column-max'`` (:func:`damped_diagonal`).
+    ``damping='global'`` and the elementwise largest ``diag`` of the run so far with
+    ``damping='per-variable'`` (:func:`damped_diagonal`).
 
     Stops when a nearly undamped (Gauss-Newton, damping below ``1``) accepted step lowers
     the cost by less than ``tol`` (relative), when the cost reaches :data:`ROUNDING_COST`
@@ -280,7 +280,7 @@ def lm_loop(
     state = linearise(free0)
     if damping not in LM_DAMPING_RULES:
         raise ValueError(f"damping must be one of {LM_DAMPING_RULES}, got {damping!r}.")
-    scale = np.asarray(state.diag) if damping == "column-max" else None
+    scale = np.asarray(state.diag) if damping == "per-variable" else None
     damping = 1e-3
     history, message, converged = [float(state.cost)], "max_iter reached", False
     for iteration in range(1, max_iter + 1):

@@ -59,6 +59,7 @@ class GammaPath:
     Attributes
     ----------
     gammas : ndarray of shape (n_gammas,)
+        The grid, up to where the path ended (see :func:`fit_gamma_path`).
     gamma_max : float
         :math:`\gamma_{max}` of the whole record (``nan`` when ``gammas`` were given).
     coefs : ndarray of shape (n_gammas, n_delta_states, n_features)
@@ -164,22 +165,38 @@ def _blocks(index: np.ndarray) -> list[np.ndarray]:
     return np.split(index, np.flatnonzero(np.diff(index) != 1) + 1)
 
 
-def _fold_errors(est, u, z, train, test, gammas, init_window) -> np.ndarray:
-    """Held-out errors at every :math:`\\gamma` of one fold (fits on ``train`` only), shape
+def _fold_errors(est, u, z, train, test, gammas, init_window, min_improvement) -> np.ndarray:
+    r"""Held-out errors at every :math:`\gamma` of one fold (fits on ``train`` only), shape
     ``(n_gammas, 2)``: in output standard deviations and in the output's units; ``inf``
-    where the fold's fit failed (with a warning that names the error)."""
-    errors = []
+    where the fold's fit failed (with a warning that names the error). The fold's own path
+    ends as the whole record's does (:func:`_improves`); the :math:`\gamma` after its end
+    keep its last model's errors."""
+    errors, last, previous = [], None, None
     for gamma in gammas:
+        if previous is None and last is not None:  # the fold's path has ended
+            errors.append(last)
+            continue
         try:
             est.set_params(gamma=gamma).fit(u[train], z[train], sample_index=train)
         except ValueError as error:
             message = f"fit_gamma_path: a fold's fit at gamma={gamma:.3g} failed ({error})"
             warnings.warn(message, stacklevel=2)
-            errors.append([np.inf, np.inf])
+            errors.append(np.array([np.inf, np.inf]))
+            continue
+        if last is not None and not _improves(est.fit_error_, previous, min_improvement):
+            errors.append(last)
+            previous = None
             continue
         scores = [_block_errors(est, u, z, block, init_window) for block in _blocks(test)]
-        errors.append(np.sqrt(np.mean(np.square(scores), axis=0)))
+        last, previous = np.sqrt(np.mean(np.square(scores), axis=0)), est.fit_error_
+        errors.append(last)
     return np.asarray(errors)
+
+
+def _improves(fit_error: float, previous: float, min_improvement: float) -> bool:
+    r"""Whether a smaller :math:`\gamma` bought a better fit: the fit error fell by more
+    than ``min_improvement`` of its previous value (always, with ``min_improvement=0``)."""
+    return min_improvement <= 0 or fit_error < (1.0 - min_improvement) * previous
 
 
 def _block_errors(est, u, z, block, init_window) -> np.ndarray:
@@ -207,9 +224,11 @@ def _splits(cv, n_samples: int) -> list[tuple[np.ndarray, np.ndarray]]:
     return list(splitter.split(np.zeros((n_samples, 1))))
 
 
-def _whole_record_path(est, u, z, gammas, sample_index):
-    """Fit at every :math:`\\gamma` on the whole record; snapshots of the fitted estimator."""
-    snapshots, errors = [], []
+def _whole_record_path(est, u, z, gammas, sample_index, min_improvement):
+    r"""Fit at every :math:`\gamma` on the whole record until a smaller one stops improving
+    the fit (:func:`_improves`); snapshots of the fitted estimator (``None`` where a fit
+    failed) and their estimation errors."""
+    snapshots, errors, previous = [], [], None
     for gamma in gammas:
         try:
             est.set_params(gamma=gamma).fit(u, z, sample_index=sample_index)
@@ -220,6 +239,9 @@ def _whole_record_path(est, u, z, gammas, sample_index):
             snapshots.append(None)
             errors.append(np.inf)
             continue
+        if previous is not None and not _improves(est.fit_error_, previous, min_improvement):
+            break
+        previous = est.fit_error_
         est.set_params(warm_start=True)
         snapshots.append(copy.copy(est))
         errors.append(_normalised_rmse(est, u, z, 0) if sample_index is None else np.nan)
@@ -241,6 +263,7 @@ def fit_gamma_path(
     init_window: int | None = None,
     sample_index=None,
     n_jobs: int | None = None,
+    min_improvement: float = 1e-3,
 ) -> GammaPath:
     r"""Fit ``estimator`` along a grid of :math:`\gamma` and (with ``cv``) choose one.
 
@@ -250,6 +273,15 @@ def fit_gamma_path(
     partly cancel (large weights, small sum) costs much :math:`\ell_1` norm, and a fit
     started from :math:`\Omega = 0` at a small :math:`\gamma` can settle in another local
     minimum, while a path that grows the support term by term reaches it.
+
+    The path ends early, as glmnet's does, at the first :math:`\gamma_{k+1}` whose fit
+    error :math:`e_{k+1}` (``fit_error_``, the RMS multi-step fit residual in output
+    standard deviations) is not below :math:`(1 - \text{min\_improvement})\,e_k`: a weaker
+    penalty that buys no fit only loosens the correction. Below that point the fits differ
+    by where the solver stops in directions the data do not determine, so a change of
+    units or of rounding picks another model, and the CV errors there are as erratic.
+    :math:`\gamma_{k+1}` and the smaller values are left out of the result; each CV fold
+    ends its own path by the same rule and keeps its last model's held-out errors.
 
     Parameters
     ----------
@@ -278,6 +310,10 @@ def fit_gamma_path(
         cores) while this one fits the whole record. The numbers are the same as with one
         (each fold is the same computation); the workers compile their own programs unless
         the persistent cache is on (:func:`~sk_offwhite.enable_compilation_cache`).
+    min_improvement : float, default=1e-3
+        Relative decrease of the fit error a smaller :math:`\gamma` must bring for the path
+        to go on (dimensionless); 0 fits the whole grid, as does a grid that is not
+        decreasing.
 
     Returns
     -------
@@ -286,7 +322,11 @@ def fit_gamma_path(
     if estimator.library is None:
         raise ValueError("fit_gamma_path needs an estimator with a library (a correction).")
     estimator._validate_params()
+    if not 0 <= min_improvement < 1:
+        raise ValueError(f"min_improvement must be in [0, 1), got {min_improvement!r}.")
     u_arr, z_arr = np.asarray(u, float), np.asarray(z, float)
+    if gammas is not None and np.any(np.diff(_check_gammas(gammas)) >= 0):
+        min_improvement = 0.0  # the early end compares each gamma with a larger one
     if gammas is None:
         estimator._fit(u_arr, z_arr, sample_index, reference_only=True)
         values, gamma_max = gamma_grid(estimator.gamma_max_, n_gammas, eps), estimator.gamma_max_
@@ -297,17 +337,21 @@ def fit_gamma_path(
         template, window = clone(estimator), _init_window(estimator, init_window, len(u_arr))
         splits = _splits(cv, len(u_arr))
         arguments = [
-            (clone(template), u_arr, z_arr, train, test, values, window) for train, test in splits
+            (clone(template), u_arr, z_arr, train, test, values, window, min_improvement)
+            for train, test in splits
         ]
         jobs = launch(_fold_errors, arguments, n_jobs)
     warm_start = estimator.warm_start
     try:
-        snapshots, train_error = _whole_record_path(estimator, u_arr, z_arr, values, sample_index)
+        snapshots, train_error = _whole_record_path(
+            estimator, u_arr, z_arr, values, sample_index, min_improvement
+        )
     finally:
         estimator.set_params(warm_start=warm_start)
+    values = values[: len(snapshots)]
     if jobs is not None:
         folds = gather(jobs)
-        cv_error, cv_rmse = np.moveaxis(np.stack(folds, axis=1), -1, 0)
+        cv_error, cv_rmse = np.moveaxis(np.stack(folds, axis=1), -1, 0)[:, : len(values)]
     failed = np.array([snap is None for snap in snapshots])
     if cv_error is not None:
         cv_error[failed], cv_rmse[failed] = np.inf, np.inf

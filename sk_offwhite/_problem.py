@@ -201,7 +201,7 @@ class SolverOptions(NamedTuple):
     max_iter: int
     tol: float
     verbose: int
-    lm_scaling: str = "floor"
+    lm_scaling: str = "per-variable"
 
 
 class FitOutcome(NamedTuple):
@@ -329,7 +329,17 @@ def _fit_once(settings: FitSettings, warm=None, sparse=None, reference=None) -> 
 
 
 def solve(
-    model, layout, problem, free0, *, solver, optimizer, max_iter, tol, verbose, lm_scaling="floor"
+    model,
+    layout,
+    problem,
+    free0,
+    *,
+    solver,
+    optimizer,
+    max_iter,
+    tol,
+    verbose,
+    lm_scaling="per-variable",
 ):
     """Run the chosen solver.
 

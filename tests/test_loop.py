@@ -162,6 +162,19 @@ def test_an_input_term_proposes_an_actuator_saturation():
     assert not any(isinstance(e, Overflow) for e in effects)  # w changes sign: not a level
 
 
+def test_every_level_may_overflow_whatever_the_hypotheses_say():
+    # an overflow acts where the declared physics seldom takes the state, where the
+    # linearised evidence is blind: each level's is proposed without a hypothesis
+    levels = np.linspace(0.0, 10.0, 200)[:, None] * np.ones((1, 2))
+    names = [c.effect.name for c in propose_effects([], [], ("x1", "x2"), ["x2"], levels)]
+    assert names == ["overflow_x1_to_x2", "overflow_x2_to_x1"]  # fraction 0: out of it
+    alone = propose_effects([], [], ("h",), ["h"], levels[:, :1])
+    assert [c.effect for c in alone] == [Overflow(0, float(np.quantile(levels[:, 0], 0.8)),
+                                         name="overflow_h")]  # fmt: skip
+    swinging = np.sin(np.linspace(0.0, 20.0, 200))[:, None]
+    assert propose_effects([], [], ("w",), ["w"], swinging) == []  # not a level
+
+
 def test_candidates_are_unique_by_name():
     states = np.ones((10, 2))
     hyps = [
@@ -192,15 +205,50 @@ def test_max_candidates_caps_the_candidates_fitted(monkeypatch):
     assert trail == [("declared physics", 1.0)]
 
 
+def test_a_set_never_holds_two_variants_of_one_mechanism(monkeypatch):
+    from sk_offwhite.loop import _loop
+
+    into_x1 = Overflow(1, 9.0, sink=0, name="overflow_x2_to_x1")
+    out = Overflow(1, 9.0, name="overflow_x2")
+    upper = Overflow(0, 5.0, sink=1, name="overflow_x1_to_x2")
+    leak = Leak(0, name="leak_x1")
+    assert into_x1.mechanism == out.mechanism != upper.mechanism and leak.mechanism == "leak_x1"
+    # the variant with fewer parameters stands for its mechanism unless another is better
+    # by more than the tolerance (2 %)
+    ranked = [(0.5, SimpleNamespace(effect=into_x1), {}), (0.505, SimpleNamespace(effect=out), {})]
+    ranked += [(0.6, SimpleNamespace(effect=upper), {}), (0.7, SimpleNamespace(effect=leak), {})]
+    assert [c.effect for _, c, _ in _loop._representatives(ranked, 0.02)] == [out, upper, leak]
+    clearly = [(0.4, *ranked[0][1:]), *ranked[1:]]
+    assert _loop._representatives(clearly, 0.02)[0][1].effect == into_x1
+
+    # every added effect lowers the error, a second variant most: without the rule
+    # forward selection would take it
+    def quick_fit(board, effects, warm, u, z, settings):
+        names = frozenset(e.name for e in effects)
+        return 0.1 if {"overflow_x2_to_x1", "overflow_x2"} <= names else 1 / (1 + len(names)), {}
+
+    monkeypatch.setattr(_loop, "_quick_fit", quick_fit)
+    settings = LoopSettings(max_effects=3, beam=3)
+    steps = _loop._forward(None, ranked, None, None, settings, 1.0, [])
+    assert [[e.name for e in step[0]] for step in steps] == [
+        ["overflow_x2"],
+        ["overflow_x2", "overflow_x1_to_x2"],
+        ["overflow_x2", "overflow_x1_to_x2", "leak_x1"],
+    ]
+    moves = [m[0] for m in _loop._additions_and_exchanges((out, upper), {}, ranked, 1.0, settings)]
+    assert all(len({e.mechanism for e in m}) == len(m) for m in moves)
+    assert (out, upper, leak) in moves and (upper, leak) in moves
+
+
 def test_settings_are_checked_and_passed_to_every_fit():
     with pytest.raises(ValueError, match="max_candidates must be None or >= 1"):
         LoopSettings(max_candidates=0)
-    with pytest.raises(ValueError, match="lm_scaling must be 'floor' or 'column-max'"):
+    with pytest.raises(ValueError, match="lm_scaling must be 'per-variable' or 'global'"):
         LoopSettings(lm_scaling="minpack")
     from sk_offwhite.loop import _loop
 
-    settings = LoopSettings(lm_scaling="column-max")
-    assert _loop._estimator(None, settings).lm_scaling == "column-max"
+    settings = LoopSettings(lm_scaling="per-variable")
+    assert _loop._estimator(None, settings).lm_scaling == "per-variable"
 
 
 def test_shared_programs_find_the_same_leak():

@@ -102,18 +102,18 @@ def test_rescaled_units_give_the_same_model(record, fitted, scale):
 
 
 @pytest.mark.parametrize("scale", [1e-3, 1e3])
-def test_column_max_scaling_takes_the_same_solver_steps_in_any_units(record, scale):
-    # Marquardt's damping in each variable's own units (MINPACK's running maximum of
-    # diag(J^T J)): the iterates, not only the optimum, do not depend on the units; with
-    # the default floor (one number for all variables) they do
+def test_per_variable_scaling_takes_the_same_solver_steps_in_any_units(record, scale):
+    # Marquardt's damping floor in each variable's own units (its largest diag(J^T J) so
+    # far): the iterates, not only the optimum, do not depend on the units; with one
+    # floor for all variables they do
     u, z = record
     steps = {}
-    for rule in ("column-max", "floor"):
+    for rule in ("per-variable", "global"):
         est = _estimator(gamma=1e-3, lm_scaling=rule)
         volts = _quiet(clone(est).fit, u, z).loss_history_
         other = _quiet(clone(est).fit, u * scale, z * scale).loss_history_
         steps[rule] = volts.shape == other.shape and np.allclose(other, volts, rtol=1e-7)
-    assert steps == {"column-max": True, "floor": False}
+    assert steps == {"per-variable": True, "global": False}
 
 
 def test_rescaled_dictionary_column_gives_the_same_support(record, fitted):
@@ -215,7 +215,7 @@ def test_path_cv_in_output_units_is_what_refitting_the_folds_scores(record):
         scoring=held_out_rmse(20),
         params={"sample_index": np.arange(len(u))},
     )
-    assert path.cv_rmse.shape == path.cv_error.shape == (3, 3)
+    assert path.cv_rmse.shape == path.cv_error.shape == (len(path.gammas), 3)
     np.testing.assert_allclose(path.cv_rmse[path.best_index], -scores, rtol=1e-12)
 
 
@@ -229,5 +229,47 @@ def test_a_fold_fit_that_fails_scores_inf_with_a_warning(record):
     est = _FailingFit(_physics(), ps.PolynomialLibrary(degree=2), max_iter=200)
     train, test = np.arange(100, N_SAMPLES), np.arange(100)
     with pytest.warns(UserWarning, match=r"fold's fit at gamma=0.01 failed \(made to fail\)"):
-        errors = _fold_errors(est, u, z, train, test, [1e-2, 1e-3], 20)
+        errors = _fold_errors(est, u, z, train, test, [1e-2, 1e-3], 20, 1e-3)
     assert errors.shape == (2, 2) and np.all(np.isinf(errors))
+
+
+def test_the_path_ends_where_a_smaller_gamma_no_longer_improves_the_fit():
+    # noise 1e-3: once x1^2 is in, the fit error is the noise's and a weaker penalty buys
+    # nothing; the path ends there, a prefix of the whole grid's path
+    u, z = _plant(N_SAMPLES, seed=1, noise=1e-3)
+    full = _quiet(fit_gamma_path, _estimator(), u, z, n_gammas=8, min_improvement=0.0)
+    short = _quiet(fit_gamma_path, _estimator(), u, z, n_gammas=8)
+    n = len(short.gammas)
+    assert len(full.gammas) == 8 and 1 < n < 8
+    np.testing.assert_array_equal(short.gammas, full.gammas[:n])
+    np.testing.assert_allclose(short.coefs, full.coefs[:n], rtol=1e-9, atol=1e-12)
+    assert short.selected(n - 1) == ["x1: x1^2"]
+    with pytest.raises(ValueError, match="min_improvement must be in"):
+        fit_gamma_path(_estimator(), u, z, min_improvement=1.0)
+
+
+class _Plateau:
+    """A stand-in estimator whose fit error stops improving below gamma = 1e-3 and whose
+    held-out error is gamma."""
+
+    output_scale_ = np.ones(1)
+    n_fits = 0
+
+    def set_params(self, gamma):
+        self.gamma = gamma
+        return self
+
+    def fit(self, u, z, sample_index=None):
+        self.fit_error_, self.n_fits = max(self.gamma, 1e-3), self.n_fits + 1
+        return self
+
+    def predict(self, u, z_init=None):
+        return np.full((len(u), 1), self.gamma)
+
+
+def test_a_fold_path_ends_by_the_same_rule_and_keeps_its_last_errors():
+    u, z = np.zeros((40, 1)), np.zeros((40, 1))
+    est, gammas = _Plateau(), [1e-1, 1e-2, 1e-3, 1e-4, 1e-5]
+    errors = _fold_errors(est, u, z, np.arange(20), np.arange(20, 40), gammas, 0, 1e-3)
+    np.testing.assert_allclose(errors[:, 0], [1e-1, 1e-2, 1e-3, 1e-3, 1e-3])
+    assert est.n_fits == 4  # the fourth fit bought nothing: no fifth

@@ -304,6 +304,23 @@ def _level_effects(hypothesis, states, names, kinds: Kinds) -> list[Candidate]:
     ]
 
 
+def _spills(states, names, kinds: Kinds) -> list[Candidate]:
+    """An overflow of every level, started at its 80th percentile, into each other level
+    (its fraction in [0, 1] covers an excess that leaves the system) or, with no other
+    level, out of the system: proposed whatever the hypotheses say, because the linearised
+    evidence cannot see an effect that acts only where the declared physics seldom takes
+    the state (a tank it never fills)."""
+    levels = [i for i in range(len(names)) if _is_level(i, states, kinds)]
+    out = []
+    for i in levels:
+        level = _level(None, states, i, names[i])
+        for j in [k for k in levels if k != i] or [None]:
+            where = "out of the system" if j is None else f"part of it into {names[j]}"
+            reason = f"{names[i]} is a level: it may overflow above about {level:.3g}, {where}."
+            out.append(Candidate(_overflow(i, level, j, names), reason))
+    return out
+
+
 def _is_level(state: int, states, kinds: Kinds) -> bool:
     """A declared level, or a generic state that never changes sign."""
     kind = kinds.states[state]
@@ -376,4 +393,5 @@ def propose_effects(
         proposals += _offsets(hypotheses, list(measured), output_names)
         proposals += _calibrations(states, list(measured), output_names)
     proposals += _ceilings(range_facts, output_names, measured, names)
+    proposals += _spills(states, names, kinds)
     return unique_by_name(proposals)

@@ -98,8 +98,9 @@ class LoopSettings:
     held-out folds, the candidate effects and the effect sets, with the same numbers as
     one; switch the persistent compilation cache on
     (:func:`~sk_offwhite.enable_compilation_cache`) so that they share compiled programs.
-    ``lm_scaling`` is every fit's Levenberg-Marquardt scaling (``'column-max'``: iterates
-    that do not depend on the units; see :class:`~sk_offwhite.GreyBoxSparseRegressor`).
+    ``lm_scaling`` is every fit's Levenberg-Marquardt scaling (``'per-variable'``, iterates
+    that do not depend on the units, or ``'global'``; see
+    :class:`~sk_offwhite.GreyBoxSparseRegressor`).
     """
 
     gammas: tuple[float, ...] | None = None
@@ -123,14 +124,14 @@ class LoopSettings:
     selection: str = "cv"
     tail_fraction: float = 0.25
     n_jobs: int | None = None
-    lm_scaling: str = "floor"
+    lm_scaling: str = "per-variable"
 
     def __post_init__(self):
         if self.selection not in ("cv", "tail"):
             raise ValueError(f"selection must be 'cv' or 'tail', got {self.selection!r}.")
-        if self.lm_scaling not in ("floor", "column-max"):
+        if self.lm_scaling not in ("per-variable", "global"):
             raise ValueError(
-                f"lm_scaling must be 'floor' or 'column-max', got {self.lm_scaling!r}."
+                f"lm_scaling must be 'per-variable' or 'global', got {self.lm_scaling!r}."
             )
         if not 0.0 < self.tail_fraction < 1.0:
             raise ValueError(f"tail_fraction must be in (0, 1), got {self.tail_fraction!r}.")
@@ -470,11 +471,14 @@ def _handicap(effect, settings) -> float:
 def _forward(board, ranked, u, z, settings, base_rmse, failures):
     """Forward selection: ``[(effects, warm parameters, estimation RMSE)]`` for each step.
 
-    The pool holds the ``beam`` best candidates alone and every relaxed declared law
-    (:class:`~sk_offwhite.RelaxedLaw`): a law the user marked relaxable is always tried on
-    top of the effects chosen so far, whose absence may be what made it look useless alone.
+    The pool holds the ``beam`` best candidates alone of distinct mechanisms (one variant
+    of each, :func:`_representatives`; a set never holds two variants of one) and
+    every relaxed declared law (:class:`~sk_offwhite.RelaxedLaw`): a law the user marked
+    relaxable is always tried on top of the effects chosen so far, whose absence may be
+    what made it look useless alone.
     """
-    fitted = [(c.effect, params, r) for r, c, params in ranked if np.isfinite(r)]
+    finite = [item for item in ranked if np.isfinite(item[0])]
+    fitted = [(c.effect, p, r) for r, c, p in _representatives(finite, settings.tolerance)]
     laws = [item for item in fitted[settings.beam :] if item[0].target == "law"]
     pool = fitted[: settings.beam] + laws
     steps, current, current_rmse = [], [], base_rmse
@@ -486,7 +490,8 @@ def _forward(board, ranked, u, z, settings, base_rmse, failures):
         if steps:
             current, current_rmse = list(steps[0][0]), steps[0][2]
     while len(current) < settings.max_effects:
-        added = [(effect, params) for effect, params, _ in pool if effect not in current]
+        taken = {effect.mechanism for effect in current}
+        added = [(effect, params) for effect, params, _ in pool if effect.mechanism not in taken]
         calls = [
             ("effects " + _label((*current, effect)), _quick_fit, board, (*current, effect),
              {**steps[-1][1], **_own(params, effect)}, u, z, settings)
@@ -508,6 +513,27 @@ def _forward(board, ranked, u, z, settings, base_rmse, failures):
     return steps
 
 
+def _representatives(ranked, tolerance: float) -> list:
+    """``ranked`` (``(RMSE, candidate, parameters)``, best first) with one variant per
+    mechanism (:attr:`~sk_offwhite.Effect.mechanism`), in the place of the mechanism's
+    best: the variant with the fewest parameters among those within ``tolerance`` of that
+    best (an overflow whose excess leaves the system rather than one with a fitted
+    fraction, unless the fraction is worth it)."""
+    groups: dict[str, list] = {}
+    for item in ranked:
+        groups.setdefault(item[1].effect.mechanism, []).append(item)
+    return [min(_within(group, tolerance), key=_n_parameters) for group in groups.values()]
+
+
+def _within(group, tolerance: float) -> list:
+    """The items of ``group`` (best first) whose RMSE is within ``tolerance`` of the first."""
+    return [item for item in group if item[0] <= group[0][0] * (1.0 + tolerance)]
+
+
+def _n_parameters(item) -> int:
+    return len(item[1].effect.parameters())
+
+
 def _best_pair(board, pool, u, z, settings, base_rmse, failures):
     """When no candidate helps alone: the best pair of the ``pool`` if it helps."""
     best = None
@@ -527,7 +553,8 @@ def _best_pair(board, pool, u, z, settings, base_rmse, failures):
 def _nested(ranked, base_rmse, settings):
     """The nested sets of the candidates that helped alone, in the order of their gain
     (the declared parameters start from the first one's fit, each effect from its own)."""
-    kept = [(c.effect, params) for r, c, params in ranked if r < base_rmse]
+    helped = [item for item in ranked if item[0] < base_rmse]
+    kept = [(c.effect, p) for _, c, p in _representatives(helped, settings.tolerance)]
     kept = kept[: settings.max_effects]
     return [
         (
@@ -651,20 +678,24 @@ def _moves(effects, warm, ranked, rmse, settings):
 
 
 def _additions_and_exchanges(effects, warm, ranked, rmse, settings):
-    """The additions and exchanges of :func:`_moves`."""
+    """The additions and exchanges of :func:`_moves` (a set never holds two variants of
+    one mechanism)."""
     pool = [
         (c.effect, p)
-        for r, c, p in ranked[: settings.beam]
+        for _, c, p in _representatives(ranked, settings.tolerance)[: settings.beam]
         if c.effect not in effects and not isinstance(c.effect, DictionaryTerm)
     ]
     for effect, params in pool:
-        if len(effects) < settings.max_effects:
+        taken = [e.mechanism for e in effects]
+        if len(effects) < settings.max_effects and effect.mechanism not in taken:
             gain = (1.0 - settings.min_gain) * rmse
             yield (*effects, effect), _starts(warm, effect, params), gain
         for out in effects:
+            rest = tuple(e for e in effects if e != out)
+            if effect.mechanism in {e.mechanism for e in rest}:
+                continue
             kept = {n: p for n, p in warm.items() if n not in out.parameters()}
-            trial = tuple(e for e in effects if e != out) + (effect,)
-            yield trial, _starts(kept, effect, params), rmse
+            yield (*rest, effect), _starts(kept, effect, params), rmse
 
 
 def _delta_cv(est, path: GammaPath | None, u, z, settings) -> float:
