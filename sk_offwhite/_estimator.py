@@ -186,9 +186,9 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         :math:`\mathrm{diag}(J^TJ)` plus a floor of :math:`10^{-9}` times, with
         ``'per-variable'``, the largest :math:`(J^TJ)_{ii}` that variable has had in the run,
         so rescaling a state, an input or a dictionary column leaves the iterates the same
-        up to rounding (fits that stop short of a minimum, or that settle in one of
-        several, are unit-free too); with ``'global'`` (the previous rule), the largest
-        entry of all variables now, one floor for all, so the iterates depend on the units.
+        up to rounding (a fit that stops short of a minimum stops at the same model); with
+        ``'global'`` (the previous rule), the largest entry of all variables now, one floor
+        for all, so the iterates depend on the units.
     optimizer : optax.GradientTransformation, default=None
         Used by the optax solver; ``None`` is Adam (cosine-decayed from 1e-2) behind global
         norm clipping at 1.

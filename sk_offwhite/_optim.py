@@ -129,8 +129,8 @@ r"""Marquardt's scaling :math:`D = \mathrm{diag}(J^TJ)` gets this fraction of a 
 entry added (:func:`damped_diagonal`), so a variable the cost barely sees is not thrown by
 a huge step."""
 
-LM_DAMPING_RULES = ("per-variable", "global")
-"""The rules for Marquardt's scaling :math:`D` (:func:`damped_diagonal`)."""
+LM_SCALINGS = ("per-variable", "global")
+"""The rules for the floor of Marquardt's scaling :math:`D` (:func:`damped_diagonal`)."""
 
 
 def _omega(free, problem: Problem, layout: Layout):
@@ -174,7 +174,8 @@ def _lm_linearise(free, problem, *, model, layout, forward):
 def _lm_trial(state: _LMState, damping, scale, problem, *, model, layout):
     r"""Damped Gauss-Newton step :math:`(J^TJ + \mu D)\,s = -J^Tr`, projected on the box,
     and the majorised cost there at the current anchor (a forward simulation only);
-    ``scale`` is :math:`D` or ``None`` (see :func:`damped_diagonal`).
+    ``scale`` is the per-variable floors' reference or ``None`` (see
+    :func:`damped_diagonal`).
 
     Variables held at a bound by the gradient (at the lower bound with :math:`J^Tr > 0`,
     at the upper with :math:`J^Tr < 0`) take no part in the step: the others solve the
@@ -238,7 +239,7 @@ def levenberg_marquardt(
     max_iter: int,
     tol: float,
     verbose: int = 0,
-    damping: str = "per-variable",
+    scaling: str = "per-variable",
 ) -> SolverResult:
     r"""Projected Levenberg-Marquardt on :math:`\|r(\cdot)\|^2` with the dense Jacobian
     (see :func:`lm_loop` for the steps and stopping rules)."""
@@ -256,20 +257,20 @@ def levenberg_marquardt(
 
     return lm_loop(
         linearise, trial, free0, problem, max_iter=max_iter, tol=tol, verbose=verbose,
-        damping=damping,
+        scaling=scaling,
     )  # fmt: skip
 
 
 def lm_loop(
-    linearise, trial, free0, problem, *, max_iter, tol, verbose=0, damping="per-variable"
+    linearise, trial, free0, problem, *, max_iter, tol, verbose=0, scaling="per-variable"
 ) -> SolverResult:
     r"""The Levenberg-Marquardt iteration over a linearisation and a trial step.
 
     ``linearise(free)`` returns a state with ``free``, ``residual``, ``cost`` and ``diag``
     (:math:`\mathrm{diag}(J^TJ)`) at ``free``; ``trial(state, damping, scale)`` the
     damped, projected candidate and its cost, where ``scale`` is ``None`` with
-    ``damping='global'`` and the elementwise largest ``diag`` of the run so far with
-    ``damping='per-variable'`` (:func:`damped_diagonal`).
+    ``scaling='global'`` and the elementwise largest ``diag`` of the run so far with
+    ``scaling='per-variable'`` (:func:`damped_diagonal`).
 
     Stops when a nearly undamped (Gauss-Newton, damping below ``1``) accepted step lowers
     the cost by less than ``tol`` (relative), when the cost reaches :data:`ROUNDING_COST`
@@ -278,9 +279,9 @@ def lm_loop(
     under heavy damping only means the step was short, not that the fit has converged.
     """
     state = linearise(free0)
-    if damping not in LM_DAMPING_RULES:
-        raise ValueError(f"damping must be one of {LM_DAMPING_RULES}, got {damping!r}.")
-    scale = np.asarray(state.diag) if damping == "per-variable" else None
+    if scaling not in LM_SCALINGS:
+        raise ValueError(f"scaling must be one of {LM_SCALINGS}, got {scaling!r}.")
+    scale = np.asarray(state.diag) if scaling == "per-variable" else None
     damping = 1e-3
     history, message, converged = [float(state.cost)], "max_iter reached", False
     for iteration in range(1, max_iter + 1):

@@ -357,7 +357,7 @@ def solve(
     if solver == "lm" or (solver == "auto" and (windows or n_free <= LM_MAX_FREE)):
         coloured = windows and n_free > STRUCTURED_MIN_FREE
         method = structured_levenberg_marquardt if coloured else levenberg_marquardt
-        return method(free0, problem, model, layout, damping=lm_scaling, **options)
+        return method(free0, problem, model, layout, scaling=lm_scaling, **options)
     return run_optax(free0, problem, model, layout, optimizer, **options)
 
 

@@ -238,7 +238,7 @@ def _trial(state: _State, damping, scale, problem, model, layout, plan: Colourin
 
 def structured_levenberg_marquardt(
     free0, problem, model, layout, *, max_iter: int, tol: float, verbose: int = 0,
-    damping: str = "per-variable",
+    scaling: str = "per-variable",
 ) -> SolverResult:  # fmt: skip
     """Levenberg-Marquardt of :func:`~sk_offwhite._optim.lm_loop` with the coloured
     Jacobian and sparse normal equations (module docstring)."""
@@ -263,5 +263,5 @@ def structured_levenberg_marquardt(
 
     return lm_loop(
         linearise, trial, np.asarray(free0), problem, max_iter=max_iter, tol=tol, verbose=verbose,
-        damping=damping,
+        scaling=scaling,
     )  # fmt: skip

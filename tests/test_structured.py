@@ -87,10 +87,10 @@ def test_coloured_jacobian_equals_the_dense_one(tanks_data, with_library):
     np.testing.assert_allclose(state.normal_gg, normal[np.ix_(plan.glob, plan.glob)], atol=1e-9)
 
 
-@pytest.mark.parametrize("damping", ["global", "per-variable"])
-def test_coloured_and_dense_levenberg_marquardt_agree(tanks_data, damping):
+@pytest.mark.parametrize("scaling", ["global", "per-variable"])
+def test_coloured_and_dense_levenberg_marquardt_agree(tanks_data, scaling):
     problem, free0, model, layout = _windowed_problem(tanks_data, with_library=False)
-    options = dict(max_iter=40, tol=1e-12, damping=damping)
+    options = dict(max_iter=40, tol=1e-12, scaling=scaling)
     dense = levenberg_marquardt(free0, problem, model, layout, **options)
     coloured = structured_levenberg_marquardt(free0, problem, model, layout, **options)
     assert coloured.n_iter == dense.n_iter
