@@ -169,7 +169,7 @@ def _fold_errors(est, u, z, train, test, gammas, init_window, min_improvement) -
     r"""Held-out errors at every :math:`\gamma` of one fold (fits on ``train`` only), shape
     ``(n_gammas, 2)``: in output standard deviations and in the output's units; ``inf``
     where the fold's fit failed (with a warning that names the error). The fold's own path
-    ends as the whole record's does (:func:`_improves`); the :math:`\gamma` after its end
+    ends as the whole record's does (:func:`_changes`); the :math:`\gamma` after its end
     keep its last model's errors."""
     errors, last, previous = [], None, None
     for gamma in gammas:
@@ -183,7 +183,7 @@ def _fold_errors(est, u, z, train, test, gammas, init_window, min_improvement) -
             warnings.warn(message, stacklevel=2)
             errors.append(np.array([np.inf, np.inf]))
             continue
-        if last is not None and not _improves(est.fit_error_, previous, min_improvement):
+        if last is not None and not _changes(est.fit_error_, previous, min_improvement):
             errors.append(last)
             previous = None
             continue
@@ -193,10 +193,12 @@ def _fold_errors(est, u, z, train, test, gammas, init_window, min_improvement) -
     return np.asarray(errors)
 
 
-def _improves(fit_error: float, previous: float, min_improvement: float) -> bool:
-    r"""Whether a smaller :math:`\gamma` bought a better fit: the fit error fell by more
-    than ``min_improvement`` of its previous value (always, with ``min_improvement=0``)."""
-    return min_improvement <= 0 or fit_error < (1.0 - min_improvement) * previous
+def _changes(fit_error: float, previous: float, min_improvement: float) -> bool:
+    r"""Whether a smaller :math:`\gamma` changed the fit: the fit error moved by more than
+    ``min_improvement`` of its previous value (always, with ``min_improvement=0``). A fit
+    that got worse has moved to another minimum (the vehicle's path goes from a wrong
+    4-term support to Δ's 3 terms that way): the path goes on."""
+    return min_improvement <= 0 or abs(fit_error - previous) > min_improvement * previous
 
 
 def _block_errors(est, u, z, block, init_window) -> np.ndarray:
@@ -225,8 +227,8 @@ def _splits(cv, n_samples: int) -> list[tuple[np.ndarray, np.ndarray]]:
 
 
 def _whole_record_path(est, u, z, gammas, sample_index, min_improvement):
-    r"""Fit at every :math:`\gamma` on the whole record until a smaller one stops improving
-    the fit (:func:`_improves`); snapshots of the fitted estimator (``None`` where a fit
+    r"""Fit at every :math:`\gamma` on the whole record until a smaller one no longer changes
+    the fit (:func:`_changes`); snapshots of the fitted estimator (``None`` where a fit
     failed) and their estimation errors."""
     snapshots, errors, previous = [], [], None
     for gamma in gammas:
@@ -239,7 +241,7 @@ def _whole_record_path(est, u, z, gammas, sample_index, min_improvement):
             snapshots.append(None)
             errors.append(np.inf)
             continue
-        if previous is not None and not _improves(est.fit_error_, previous, min_improvement):
+        if previous is not None and not _changes(est.fit_error_, previous, min_improvement):
             break
         previous = est.fit_error_
         est.set_params(warm_start=True)
@@ -276,10 +278,11 @@ def fit_gamma_path(
 
     The path ends early, as glmnet's does, at the first :math:`\gamma_{k+1}` whose fit
     error :math:`e_{k+1}` (``fit_error_``, the RMS multi-step fit residual in output
-    standard deviations) is not below :math:`(1 - \text{min\_improvement})\,e_k`: a weaker
-    penalty that buys no fit only loosens the correction. Below that point the fits differ
-    by where the solver stops in directions the data do not determine, so a change of
-    units or of rounding picks another model, and the CV errors there are as erratic.
+    standard deviations) is within :math:`\text{min\_improvement}\,e_k` of :math:`e_k`:
+    a weaker penalty that changes no fit only loosens the correction. Below that point the
+    fits differ by where the solver stops in directions the data do not determine, so a
+    change of units or of rounding picks another model, and the CV errors there are as
+    erratic.
     :math:`\gamma_{k+1}` and the smaller values are left out of the result; each CV fold
     ends its own path by the same rule and keeps its last model's held-out errors.
 
@@ -311,8 +314,8 @@ def fit_gamma_path(
         (each fold is the same computation); the workers compile their own programs unless
         the persistent cache is on (:func:`~sk_offwhite.enable_compilation_cache`).
     min_improvement : float, default=1e-3
-        Relative decrease of the fit error a smaller :math:`\gamma` must bring for the path
-        to go on (dimensionless); 0 fits the whole grid, as does a grid that is not
+        Relative change of the fit error a smaller :math:`\gamma` must bring for the path to
+        go on (dimensionless); 0 fits the whole grid, as does a grid that is not
         decreasing.
 
     Returns

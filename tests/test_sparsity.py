@@ -233,7 +233,7 @@ def test_a_fold_fit_that_fails_scores_inf_with_a_warning(record):
     assert errors.shape == (2, 2) and np.all(np.isinf(errors))
 
 
-def test_the_path_ends_where_a_smaller_gamma_no_longer_improves_the_fit():
+def test_the_path_ends_where_a_smaller_gamma_no_longer_changes_the_fit():
     # noise 1e-3: once x1^2 is in, the fit error is the noise's and a weaker penalty buys
     # nothing; the path ends there, a prefix of the whole grid's path
     u, z = _plant(N_SAMPLES, seed=1, noise=1e-3)
