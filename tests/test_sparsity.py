@@ -238,7 +238,7 @@ def test_the_path_ends_where_a_smaller_gamma_no_longer_changes_the_fit():
     # nothing; the path ends there, a prefix of the whole grid's path
     u, z = _plant(N_SAMPLES, seed=1, noise=1e-3)
     full = _quiet(fit_gamma_path, _estimator(), u, z, n_gammas=8, min_improvement=0.0)
-    short = _quiet(fit_gamma_path, _estimator(), u, z, n_gammas=8)
+    short = _quiet(fit_gamma_path, _estimator(), u, z, n_gammas=8, min_improvement=1e-3)
     n = len(short.gammas)
     assert len(full.gammas) == 8 and 1 < n < 8
     np.testing.assert_array_equal(short.gammas, full.gammas[:n])
