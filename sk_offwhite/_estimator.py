@@ -21,6 +21,7 @@ from sklearn.utils.validation import _check_feature_names, _check_sample_weight,
 from ._basis import compile_basis
 from ._equations import format_equations
 from ._objective import CostWeights
+from ._optim import LM_SCALINGS
 from ._physics import PhysicsModel
 from ._problem import (
     SolverOptions,
@@ -281,7 +282,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         "l1_smoothing": [Interval(Real, 0, None, closed="neither")],
         "shooting_weight": [Interval(Real, 0, None, closed="left")],
         "solver": [StrOptions({"auto", "lm", "optax"})],
-        "lm_scaling": [StrOptions({"per-variable", "global"})],
+        "lm_scaling": [StrOptions(set(LM_SCALINGS))],
         "optimizer": "no_validation",
         "max_iter": [Interval(Integral, 1, None, closed="left")],
         "tol": [Interval(Real, 0, None, closed="left")],

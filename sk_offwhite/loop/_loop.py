@@ -48,6 +48,7 @@ from sklearn.model_selection import KFold
 from .._effects import DictionaryTerm, augment, relaxations, time_step
 from .._estimator import GreyBoxSparseRegressor
 from .._kinds import physical_kinds
+from .._optim import LM_SCALINGS
 from .._parallel import gather, launch
 from .._path import GammaPath, fit_gamma_path
 from .._physics import Parameter
@@ -129,7 +130,7 @@ class LoopSettings:
     def __post_init__(self):
         if self.selection not in ("cv", "tail"):
             raise ValueError(f"selection must be 'cv' or 'tail', got {self.selection!r}.")
-        if self.lm_scaling not in ("per-variable", "global"):
+        if self.lm_scaling not in LM_SCALINGS:
             raise ValueError(
                 f"lm_scaling must be 'per-variable' or 'global', got {self.lm_scaling!r}."
             )
@@ -685,8 +686,8 @@ def _additions_and_exchanges(effects, warm, ranked, rmse, settings):
         for _, c, p in _representatives(ranked, settings.tolerance)[: settings.beam]
         if c.effect not in effects and not isinstance(c.effect, DictionaryTerm)
     ]
+    taken = {e.mechanism for e in effects}
     for effect, params in pool:
-        taken = [e.mechanism for e in effects]
         if len(effects) < settings.max_effects and effect.mechanism not in taken:
             gain = (1.0 - settings.min_gain) * rmse
             yield (*effects, effect), _starts(warm, effect, params), gain
