@@ -191,7 +191,7 @@ def _solver_programs(model, layout, problem, free0) -> dict:
     forward = jax.jit(free_residuals, static_argnames=("model", "layout"))
     return {
         "linearise": lambda: _lm_linearise(free0, problem, forward=True, **static),
-        "trial step": lambda: _lm_trial(state, 1e-3, problem, **static),
+        "trial step": lambda: _lm_trial(state, 1e-3, state.diag, problem, **static),
         "forward": lambda: forward(free0, problem, **static),
     }
 
