@@ -32,14 +32,14 @@ from sk_offwhite.datasets import cascaded_tanks_physics, load_cascaded_tanks, ma
 NOISE_BOUNDS = (0.0, 2e-4)
 
 
-def vehicle_run(seed: int, noise: float) -> dict:
+def vehicle_run(seed: int, noise: float, one_se: bool = False) -> dict:
     """One vehicle record: the CV-chosen support against Delta's."""
     data = make_vehicle_lateral(n_samples=2000, noise_bound=noise, random_state=seed)
     est = GreyBoxSparseRegressor(
         data.physics, data.suggested_library, delta_states=[0], max_iter=1000
     )
     start = time.perf_counter()
-    path = fit_gamma_path(est, data.u, data.z, cv=3)
+    path = fit_gamma_path(est, data.u, data.z, cv=3, one_standard_error=one_se)
     truth = data.true_omega != 0
     return {
         "exact": bool(np.array_equal(est.support_[0], truth)),
@@ -49,9 +49,9 @@ def vehicle_run(seed: int, noise: float) -> dict:
     }
 
 
-def vehicle(seeds: int) -> None:
+def vehicle(seeds: int, one_se: bool = False) -> None:
     for noise in NOISE_BOUNDS:
-        runs = [vehicle_run(seed, noise) for seed in range(seeds)]
+        runs = [vehicle_run(seed, noise, one_se) for seed in range(seeds)]
         exact = sum(r["exact"] for r in runs)
         terms = [r["n_terms"] for r in runs]
         ratios = ", ".join(f"{r['gamma_ratio']:.1e}" for r in runs)
@@ -86,18 +86,20 @@ def in_units(physics: PhysicsModel, scale: float) -> PhysicsModel:
     )
 
 
-def units() -> None:
+def units(one_se: bool = False, rules=("global", "per-variable")) -> None:
     data = load_cascaded_tanks()
     physics = cascaded_tanks_physics(fixed={"k4": 0.05})
     library = ps.PolynomialLibrary(degree=2)
-    for rule in ("global", "per-variable"):
+    for rule in rules:
         print(f"lm_scaling={rule!r}: the support path (default grid, 3-fold CV) in each unit")
         for scale in (1.0, 1e-3, 1e3):
             start = time.perf_counter()
             est = GreyBoxSparseRegressor(
                 in_units(physics, scale), library, max_iter=300, lm_scaling=rule
             )
-            path = fit_gamma_path(est, data.u_est * scale, data.z_est * scale, cv=3)
+            path = fit_gamma_path(
+                est, data.u_est * scale, data.z_est * scale, cv=3, one_standard_error=one_se
+            )
             terms = np.flatnonzero(est.support_.ravel()).tolist()
             r2 = est.score(data.u_est * scale, data.z_est * scale)
             seconds = time.perf_counter() - start
@@ -113,12 +115,20 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("sections", nargs="*", default=["vehicle", "units"])
     parser.add_argument("--seeds", type=int, default=10)
+    parser.add_argument(
+        "--one-standard-error",
+        action="store_true",
+        help="choose gamma as the largest within one standard error of the lowest CV error",
+    )
+    parser.add_argument(
+        "--lm-scaling", nargs="+", default=["global", "per-variable"], help=argparse.SUPPRESS
+    )
     args = parser.parse_args(argv)
     warnings.simplefilter("ignore")
     if "units" in args.sections:
-        units()
+        units(args.one_standard_error, args.lm_scaling)
     if "vehicle" in args.sections:
-        vehicle(args.seeds)
+        vehicle(args.seeds, args.one_standard_error)
 
 
 if __name__ == "__main__":

@@ -74,6 +74,12 @@ def main(argv=None):
         help="Levenberg-Marquardt's scaling in every fit (LoopSettings.lm_scaling; default "
         "per-variable, whose iterates do not depend on the units; global: the previous rule)",
     )
+    parser.add_argument(
+        "--one-standard-error",
+        action="store_true",
+        help="choose each δ's γ as the largest within one standard error of the lowest CV "
+        "error (LoopSettings.one_standard_error)",
+    )
     args = parser.parse_args(argv)
     if not args.no_cache:
         enable_compilation_cache()
@@ -91,6 +97,7 @@ def main(argv=None):
         selection=args.selection,
         n_jobs=args.n_jobs,
         lm_scaling=args.lm_scaling,
+        one_standard_error=args.one_standard_error,
     )
     start = time.perf_counter()
     result = close_the_loop(physics, tanks_library(), data.u_est, data.z_est, settings=settings)

@@ -251,6 +251,23 @@ def test_settings_are_checked_and_passed_to_every_fit():
     assert _loop._estimator(None, settings).lm_scaling == "per-variable"
 
 
+@pytest.mark.parametrize("one_standard_error", [False, True])
+def test_the_delta_path_uses_the_settings_rule_for_gamma(monkeypatch, one_standard_error):
+    from sk_offwhite.loop import _loop
+
+    seen = {}
+
+    def path(est, u, z, gammas=None, **kwargs):
+        seen.update(kwargs)
+        return SimpleNamespace(estimator=est)
+
+    monkeypatch.setattr(_loop, "fit_gamma_path", path)
+    settings = LoopSettings(one_standard_error=one_standard_error)
+    _loop._fit_delta(None, None, np.zeros((300, 1)), np.zeros((300, 1)), settings)
+    assert seen["one_standard_error"] is one_standard_error
+    assert seen["n_gammas"] == settings.n_gammas and len(seen["cv"]) == settings.n_folds
+
+
 def test_shared_programs_find_the_same_leak():
     data = make_leaky_tank(n_samples=400, random_state=1)
     settings = LoopSettings(

@@ -101,7 +101,10 @@ class LoopSettings:
     (:func:`~sk_offwhite.enable_compilation_cache`) so that they share compiled programs.
     ``lm_scaling`` is every fit's Levenberg-Marquardt scaling (``'per-variable'``, iterates
     that do not depend on the units, or ``'global'``; see
-    :class:`~sk_offwhite.GreyBoxSparseRegressor`).
+    :class:`~sk_offwhite.GreyBoxSparseRegressor`). ``one_standard_error`` chooses each
+    :math:`\delta`'s :math:`\gamma` as the largest whose CV error is within one standard
+    error of the lowest (the sparser model the folds cannot tell from the best; see
+    :func:`~sk_offwhite.fit_gamma_path`) instead of the lowest.
     """
 
     gammas: tuple[float, ...] | None = None
@@ -126,6 +129,7 @@ class LoopSettings:
     tail_fraction: float = 0.25
     n_jobs: int | None = None
     lm_scaling: str = "per-variable"
+    one_standard_error: bool = False
 
     def __post_init__(self):
         if self.selection not in ("cv", "tail"):
@@ -364,6 +368,7 @@ def _fit_delta(physics, library, u, z, settings, evidence=None):
         cv=held_out_splits(settings, len(u)),
         init_window=settings.init_window,
         n_jobs=settings.n_jobs,
+        one_standard_error=settings.one_standard_error,
     )
     return path.estimator, path
 
