@@ -16,7 +16,7 @@ from sklearn.model_selection import KFold, cross_val_score
 
 from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel, fit_gamma_path, gamma_grid
 from sk_offwhite._optim import SolverResult
-from sk_offwhite._path import _fold_errors
+from sk_offwhite._path import _choose, _fold_errors
 from sk_offwhite._sparsity import _no_worse_than, _Stage
 from sk_offwhite.loop import held_out_rmse
 
@@ -273,3 +273,33 @@ def test_a_fold_path_ends_by_the_same_rule_and_keeps_its_last_errors():
     errors = _fold_errors(est, u, z, np.arange(20), np.arange(20, 40), gammas, 0, 1e-3)
     np.testing.assert_allclose(errors[:, 0], [1e-1, 1e-2, 1e-3, 1e-3, 1e-3])
     assert est.n_fits == 4  # the fourth fit bought nothing: no fifth
+
+
+@pytest.mark.parametrize(
+    "stop, expected", [(True, 1), (False, 3)], ids=["stop at divergence", "every finite"]
+)
+def test_the_choice_stops_at_the_first_diverged_gamma(stop, expected):
+    cv_error = np.array([[0.5, 0.5], [0.4, 0.4], [np.inf, 0.3], [0.1, 0.1], [np.inf, 0.2]])
+    gammas = np.logspace(0, -4, 5)
+    assert _choose(cv_error, gammas, False, stop) == expected
+
+
+def test_a_diverged_first_gamma_leaves_every_finite_one_to_choose_from():
+    cv_error = np.array([[np.inf, 0.5], [0.4, 0.4], [0.2, 0.2]])
+    assert _choose(cv_error, np.logspace(0, -2, 3), False, True) == 2
+
+
+class _Unstable(_Plateau):
+    """A stand-in whose held-out simulation diverges below gamma = 1e-2."""
+
+    def predict(self, u, z_init=None):
+        return np.full((len(u), 1), self.gamma if self.gamma >= 1e-2 else np.nan)
+
+
+def test_a_fold_fits_nothing_below_its_first_divergence():
+    u, z = np.zeros((40, 1)), np.zeros((40, 1))
+    est, gammas = _Unstable(), [1e-1, 1e-2, 1e-3, 1e-4, 1e-5]
+    with np.errstate(invalid="ignore"):
+        errors = _fold_errors(est, u, z, np.arange(20), np.arange(20, 40), gammas, 0, 0.0, True)
+    np.testing.assert_allclose(errors[:, 0], [1e-1, 1e-2, np.inf, np.inf, np.inf])
+    assert est.n_fits == 3
