@@ -14,7 +14,9 @@ Sections (all by default, or name some):
   Levenberg-Marquardt's scalings (``lm_scaling``); chosen gamma, support and R^2 on the
   estimation record.
 
-Run: ``python benchmarks/bench_sparsity.py [vehicle] [units] [--seeds N]``.
+Run: ``python benchmarks/bench_sparsity.py [vehicle] [units] [--seeds N]
+[--one-standard-error]`` (the last chooses gamma by the one-standard-error rule instead of
+the lowest CV error; both before the first diverged fold, ``fit_gamma_path``'s default).
 """
 
 from __future__ import annotations

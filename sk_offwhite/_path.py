@@ -343,11 +343,11 @@ def fit_gamma_path(
         with a fit error of 1e-13), which an early end would miss.
     stop_at_divergence : bool, default=True
         Choose only among the :math:`\gamma` before the first one whose mean CV error is
-        not finite (a fold's held-out simulation diverged or its fit failed), and fit no
-        fold below its own first divergence. There the penalty no longer keeps the
-        correction stable off the data it was fitted on, and a smaller :math:`\gamma`
-        only loosens it further: a finite CV error below that point is the luck of where
-        each fold's fit stopped (measured on the Cascaded Tanks with a degree-2
+        not finite (a fold's held-out simulation diverged, or a fold's or the whole
+        record's fit failed), and fit no fold below its own first divergence. There the
+        penalty no longer keeps the correction stable off the data it was fitted on, and
+        a smaller :math:`\gamma` only loosens it further: a finite CV error below that
+        point is the luck of where each fold's fit stopped (measured on the Cascaded Tanks with a degree-2
         dictionary: the folds diverge at :math:`1.05\cdot10^{-4}` and
         :math:`1.46\cdot10^{-5}`, not at :math:`2.03\cdot10^{-6}`, then again below, and
         a choice there changed with the units of the data). ``False`` chooses among every
