@@ -71,7 +71,8 @@ class GammaPath:
     cv_error : ndarray of shape (n_gammas, n_folds) or None
         RMS simulation error of each fold's held-out block (initial state estimated from
         its first ``init_window`` samples, which are not scored), in output standard
-        deviations; ``inf`` where the simulation diverged.
+        deviations; ``inf`` where the simulation diverged, and (``stop_at_divergence``)
+        at every smaller :math:`\gamma` of that fold, which is not fitted.
     best_index : int or None
         The chosen :math:`\gamma` (``None`` without ``cv``).
     feature_names : list of str
@@ -111,7 +112,10 @@ class GammaPath:
 
     @property
     def cv_std(self) -> np.ndarray | None:
-        return None if self.cv_error is None else np.std(self.cv_error, axis=1)
+        if self.cv_error is None:
+            return None
+        with np.errstate(invalid="ignore"):  # nan where a fold diverged
+            return np.std(self.cv_error, axis=1)
 
     @property
     def best_gamma(self) -> float | None:
@@ -347,8 +351,8 @@ def fit_gamma_path(
         record's fit failed), and fit no fold below its own first divergence. There the
         penalty no longer keeps the correction stable off the data it was fitted on, and
         a smaller :math:`\gamma` only loosens it further: a finite CV error below that
-        point is the luck of where each fold's fit stopped (measured on the Cascaded Tanks with a degree-2
-        dictionary: the folds diverge at :math:`1.05\cdot10^{-4}` and
+        point is the luck of where each fold's fit stopped (measured on the Cascaded Tanks
+        with a degree-2 dictionary: the folds diverge at :math:`1.05\cdot10^{-4}` and
         :math:`1.46\cdot10^{-5}`, not at :math:`2.03\cdot10^{-6}`, then again below, and
         a choice there changed with the units of the data). ``False`` chooses among every
         finite mean, as before.

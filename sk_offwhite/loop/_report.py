@@ -194,7 +194,8 @@ def _gamma_lines(path, chosen: float) -> list[str]:
     how = f"{folds}-fold CV" if folds > 1 else "the held-out tail"
     return [
         f"Support path: γ from γ_max = {path.gamma_max:.4g} down, chosen by {how} on the "
-        f"estimation record (errors in output standard deviations; chosen γ = {chosen:.4g}):",
+        f"estimation record, before the first γ where a held-out fold diverges (errors in "
+        f"output standard deviations; chosen γ = {chosen:.4g}):",
         "",
         "```",
         path.summary(),
