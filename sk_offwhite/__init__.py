@@ -1,7 +1,7 @@
 """sk_offwhite: physics-based multi-step system identification with sparse corrections."""
 
 from ._basis import RidgeBasis, compile_basis
-from ._cache import enable_compilation_cache, release_compiled_programs
+from ._cache import enable_compilation_cache, release_compiled_programs, release_package_programs
 from ._effects import (
     AdditiveEffect,
     Backlash,
@@ -58,6 +58,7 @@ __all__ = [
     "compile_basis",
     "enable_compilation_cache",
     "release_compiled_programs",
+    "release_package_programs",
     "expected_failed_checks",
     "fit_gamma_path",
     "gamma_grid",

@@ -9,12 +9,19 @@ application's to decide (the examples switch it on; ``--no-cache`` keeps them of
 
 from __future__ import annotations
 
+import gc
 import os
+import sys
 from pathlib import Path
 
 import jax
 
-__all__ = ["DEFAULT_CACHE", "enable_compilation_cache", "release_compiled_programs"]
+__all__ = [
+    "DEFAULT_CACHE",
+    "enable_compilation_cache",
+    "release_compiled_programs",
+    "release_package_programs",
+]
 
 DEFAULT_CACHE = Path("~/.cache/sk_offwhite/xla")
 """Where :func:`enable_compilation_cache` keeps programs unless told otherwise (or
@@ -70,3 +77,33 @@ def release_compiled_programs() -> None:
 
     release_compiled_libraries()
     jax.clear_caches()
+
+
+def release_package_programs() -> int:
+    """Drop the programs compiled for this package's own jitted functions (the solver's,
+    the simulation's), and only those: the application's jitted functions and JAX's other
+    caches keep theirs.
+
+    The closed loop fits many model structures, each once or twice in a row, and the
+    programs of all of them stay in memory: the Cascaded Tanks main job held 1.68 GB at
+    its end in one process, 0.98 GB of it those programs (measured by clearing them). It
+    calls this between its stages (``LoopSettings(release_programs=True)``); a structure
+    fitted again afterwards is traced again and compiled again, or loaded from disk with
+    :func:`enable_compilation_cache`.
+
+    Returns
+    -------
+    int
+        How many jitted functions had their programs dropped.
+    """
+    cleared = {}
+    for name, module in list(sys.modules.items()):
+        if name.partition(".")[0] != __package__ or module is None:
+            continue
+        for value in vars(module).values():
+            if callable(getattr(value, "clear_cache", None)) and hasattr(value, "lower"):
+                cleared[id(value)] = value
+    for function in cleared.values():
+        function.clear_cache()
+    gc.collect()  # the programs are freed with the last reference to them
+    return len(cleared)

@@ -8,27 +8,37 @@ in order, exactly as a loop would run them.
 
 from __future__ import annotations
 
+import multiprocessing
 import warnings
 from collections.abc import Callable, Iterable
 
 from joblib import Parallel, delayed, effective_n_jobs
 
+from ._cache import release_package_programs
+
 __all__ = ["gather", "launch"]
 
 
-def _recording(function: Callable, *args):
-    """``function(*args)`` and the warnings it raised, as ``(message, category)`` pairs."""
+def _recording(function: Callable, release_after: bool, *args):
+    """``function(*args)`` and the warnings it raised, as ``(message, category)`` pairs;
+    with ``release_after``, a worker process then drops the package's compiled programs."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         value = function(*args)
+    if release_after and multiprocessing.parent_process() is not None:
+        release_package_programs()
     return value, [(str(w.message), w.category) for w in caught]
 
 
-def launch(function: Callable, arguments: Iterable[tuple], n_jobs: int | None):
+def launch(function: Callable, arguments: Iterable[tuple], n_jobs: int | None, release_after=False):
     """``function(*args)`` for each tuple of ``arguments``: computed now (one job), or
     started now in ``n_jobs`` worker processes (joblib's convention: ``-1`` all cores),
-    whose results arrive while the caller goes on. Pass the result to :func:`gather`."""
-    tasks = (delayed(_recording)(function, *args) for args in arguments)
+    whose results arrive while the caller goes on. Pass the result to :func:`gather`.
+
+    With ``release_after``, each worker drops the package's compiled programs
+    (:func:`~sk_offwhite.release_package_programs`) after each task: workers are reused,
+    and tasks whose structures are not fitted again would otherwise pile theirs up."""
+    tasks = (delayed(_recording)(function, release_after, *args) for args in arguments)
     if effective_n_jobs(n_jobs) == 1:
         return [task(*args, **kwargs) for task, args, kwargs in tasks]
     return Parallel(n_jobs=n_jobs, return_as="generator")(tasks)

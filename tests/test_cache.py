@@ -79,3 +79,35 @@ def test_release_drops_the_compiled_programs_of_a_fit():
     release_compiled_programs()
     assert _lm_linearise._cache_size() == 0
     np.testing.assert_array_equal(est.predict(tank.u), before)  # compiled again on demand
+
+
+def test_releasing_the_package_programs_keeps_the_applications_own():
+    import jax
+    import jax.numpy as jnp
+
+    from sk_offwhite import GreyBoxSparseRegressor, release_package_programs
+    from sk_offwhite._optim import _lm_linearise
+    from sk_offwhite.datasets import make_leaky_tank
+
+    data = make_leaky_tank(n_samples=100, random_state=0)
+    GreyBoxSparseRegressor(data.physics, max_iter=5).fit(data.u, data.z)
+    mine = jax.jit(lambda x: 2.0 * x)
+    mine(jnp.ones(3))
+    assert _lm_linearise._cache_size() > 0
+    assert release_package_programs() >= 5
+    assert _lm_linearise._cache_size() == 0 and mine._cache_size() == 1
+
+
+def test_the_loop_releases_programs_after_each_stage_when_asked(monkeypatch):
+    from sk_offwhite.loop import LoopSettings, _loop
+    from sk_offwhite.loop._progress import StageClock
+
+    calls = []
+    monkeypatch.setattr(_loop, "release_package_programs", lambda: calls.append(1))
+    for release, expected in ((True, 2), (False, 0)):
+        settings, clock = LoopSettings(release_programs=release), StageClock()
+        with _loop._stage(clock, "one", settings):
+            pass
+        assert _loop._released(settings, "value") == "value"
+        assert len(calls) == expected and "one" in clock.seconds
+        calls.clear()

@@ -31,11 +31,24 @@ def test_tasks_come_back_in_order_with_their_warnings_and_progress(n_jobs):
 
 def test_a_failing_call_in_a_worker_is_a_line_of_the_failures_and_the_others_go_on():
     failures = []
-    values = _attempt_all(
-        failures, [("root of 4", math.sqrt, 4.0), ("root of -1", math.sqrt, -1.0)], n_jobs=2
-    )
+    calls = [("root of 4", math.sqrt, 4.0), ("root of -1", math.sqrt, -1.0)]
+    values = _attempt_all(failures, calls, LoopSettings(n_jobs=2))
     assert values == [2.0, None]
     assert failures == ["root of -1: math domain error"]
+
+
+@pytest.mark.parametrize("in_worker", [False, True])
+def test_a_worker_drops_the_package_programs_after_a_task_when_asked(monkeypatch, in_worker):
+    from sk_offwhite import _parallel
+
+    released = []
+    monkeypatch.setattr(_parallel, "release_package_programs", lambda: released.append(1))
+    monkeypatch.setattr(
+        _parallel.multiprocessing, "parent_process", lambda: object() if in_worker else None
+    )
+    for release_after in (False, True):
+        assert _parallel._recording(math.sqrt, release_after, 4.0) == (2.0, [])
+    assert len(released) == int(in_worker)  # only in a worker, only when asked
 
 
 @pytest.fixture(scope="module")

@@ -39,12 +39,15 @@ from __future__ import annotations
 
 import copy
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 
 import numpy as np
 from sklearn.base import clone
 from sklearn.model_selection import KFold
 
+from .._cache import release_package_programs
 from .._effects import DictionaryTerm, augment, relaxations, time_step
 from .._estimator import GreyBoxSparseRegressor
 from .._kinds import physical_kinds
@@ -104,7 +107,11 @@ class LoopSettings:
     :class:`~sk_offwhite.GreyBoxSparseRegressor`). ``one_standard_error`` chooses each
     :math:`\delta`'s :math:`\gamma` as the largest whose CV error is within one standard
     error of the lowest (the sparser model the folds cannot tell from the best; see
-    :func:`~sk_offwhite.fit_gamma_path`) instead of the lowest.
+    :func:`~sk_offwhite.fit_gamma_path`) instead of the lowest. ``release_programs`` drops
+    the package's compiled programs (:func:`~sk_offwhite.release_package_programs`) after
+    each stage and each phase of the effect selection, and worker processes after each of
+    their tasks: the structures fitted there are seldom fitted again, and the programs of
+    those that are are traced again (and loaded from the disk cache when it is on).
     """
 
     gammas: tuple[float, ...] | None = None
@@ -130,6 +137,7 @@ class LoopSettings:
     n_jobs: int | None = None
     lm_scaling: str = "per-variable"
     one_standard_error: bool = False
+    release_programs: bool = True
 
     def __post_init__(self):
         if self.selection not in ("cv", "tail"):
@@ -234,6 +242,28 @@ def _estimator(physics, settings, *, cv=False, **params) -> GreyBoxSparseRegress
     )
 
 
+def _processes(settings: LoopSettings | None) -> tuple:
+    """``(n_jobs, release_after)`` of :func:`~sk_offwhite._parallel.launch` for ``settings``
+    (one process, nothing released, without)."""
+    return (None, False) if settings is None else (settings.n_jobs, settings.release_programs)
+
+
+def _released(settings: LoopSettings, value):
+    """``value``, once the package's compiled programs are dropped (with
+    ``settings.release_programs``): what a phase of the loop fitted is done with."""
+    if settings.release_programs:
+        release_package_programs()
+    return value
+
+
+@contextmanager
+def _stage(clock: StageClock, name: str, settings: LoopSettings) -> Iterator[None]:
+    """``clock.stage(name)``, then :func:`_released`."""
+    with clock.stage(name):
+        yield
+    _released(settings, None)
+
+
 def held_out_splits(settings: LoopSettings, n_samples: int) -> list:
     """``(train, test)`` index pairs of ``settings.selection``: ``n_folds`` contiguous
     blocks, or the record's last ``tail_fraction`` held out."""
@@ -259,7 +289,8 @@ def _cv_rmse(est, u, z, settings: LoopSettings) -> float:
         (clone(est), u, z, train, test, settings.init_window)
         for train, test in held_out_splits(settings, len(u))
     ]
-    return float(np.mean(gather(launch(_fold_rmse, arguments, settings.n_jobs))))
+    jobs = launch(_fold_rmse, arguments, *_processes(settings))
+    return float(np.mean(gather(jobs)))
 
 
 def _fold_rmse(est, u, z, train, test, init_window: int) -> float:
@@ -298,15 +329,17 @@ def _sets_cv(board, steps, u, z, settings, failures) -> list:
     """``(label, score, fitted)`` of :func:`_set_cv` for each step's effect set, the sets
     cross-validated by ``settings.n_jobs`` processes (each set's folds in its own one)."""
     labels = [_label(board.ordered(effects)) for effects, _, _ in steps]
-    alone = replace(settings, n_jobs=None)
+    alone = replace(settings, n_jobs=None, release_programs=False)  # released per set
     arguments = [(board, effects, warm, u, z, alone) for effects, warm, _ in steps]
 
     def progress(k, _):
         logger.info("  CV of %s (%d of %d)", labels[k - 1], k, len(labels))
 
-    outcomes = gather(launch(_set_cv_alone, arguments, settings.n_jobs), progress=progress)
+    jobs = launch(_set_cv_alone, arguments, *_processes(settings))
+    outcomes = gather(jobs, progress=progress)
     failures.extend(line for _, _, lines in outcomes for line in lines)
-    return [(label, *outcome[:2]) for label, outcome in zip(labels, outcomes, strict=True)]
+    scores = [(label, *outcome[:2]) for label, outcome in zip(labels, outcomes, strict=True)]
+    return _released(settings, scores)
 
 
 def _set_cv_alone(board, effects, warm, u, z, settings):
@@ -319,7 +352,7 @@ def _set_cv_alone(board, effects, warm, u, z, settings):
 def _attempt(failures: list, label: str, function, *args):
     """``function(*args)``; a failure becomes a line of ``failures`` (and ``None``), and
     warnings are re-issued prefixed with ``label``."""
-    return _attempt_all(failures, [(label, function, *args)], None)[0]
+    return _attempt_all(failures, [(label, function, *args)])[0]
 
 
 def _trying(function, *args):
@@ -330,16 +363,17 @@ def _trying(function, *args):
         return None, str(error)
 
 
-def _attempt_all(failures: list, calls, n_jobs) -> list:
+def _attempt_all(failures: list, calls, settings: LoopSettings | None = None) -> list:
     """:func:`_attempt` of each ``(label, function, *args)`` of ``calls``, the calls run by
-    ``n_jobs`` processes; values in order (``None`` where a call failed). Each value is
-    logged as it arrives when there are several."""
+    ``settings.n_jobs`` processes (this one without ``settings``); values in order
+    (``None`` where a call failed). Each value is logged as it arrives when there are
+    several."""
     labels = [call[0] for call in calls]
 
     def progress(k, label):
         logger.info("  %s (%d of %d)", label, k, len(calls))
 
-    jobs = launch(_trying, [call[1:] for call in calls], n_jobs)
+    jobs = launch(_trying, [call[1:] for call in calls], *_processes(settings))
     outcomes = gather(jobs, labels, progress if len(calls) > 1 else None)
     for label, (_, error) in zip(labels, outcomes, strict=True):
         if error is not None:
@@ -438,7 +472,7 @@ def _best_of(board, sets, u, z, settings, failures) -> list:
         for effects, starts in sets
         for start in starts
     ]
-    outcomes = iter(_attempt_all(failures, calls, settings.n_jobs))
+    outcomes = iter(_attempt_all(failures, calls, settings))
     best = []
     for _, starts in sets:
         fits = [fit for fit in (next(outcomes) for _ in starts) if fit is not None]
@@ -463,7 +497,7 @@ def _rank_alone(board, candidates, u, z, settings, failures):
     ranked = [
         (np.inf, candidate, {}) if fitted is None else (fitted[0], candidate, fitted[1])
         for candidate, fitted in zip(
-            candidates, _attempt_all(failures, calls, settings.n_jobs), strict=True
+            candidates, _attempt_all(failures, calls, settings), strict=True
         )
     ]
     return sorted(ranked, key=lambda item: item[0] * _handicap(item[1].effect, settings))
@@ -503,7 +537,7 @@ def _forward(board, ranked, u, z, settings, base_rmse, failures):
              {**steps[-1][1], **_own(params, effect)}, u, z, settings)
             for effect, params in added
         ]  # fmt: skip
-        fitted = _attempt_all(failures, calls, settings.n_jobs)
+        fitted = _attempt_all(failures, calls, settings)
         trials = [
             (f[0], effect, f[1])
             for (effect, _), f in zip(added, fitted, strict=True)
@@ -604,11 +638,11 @@ def _select_effects(
     candidates = candidates[: settings.max_candidates]
     shared = settings.share_programs
     alone = effect_sets(physics, [c.effect for c in candidates], shared)
-    ranked = _rank_alone(alone, candidates, u, z, settings, failures)
+    ranked = _released(settings, _rank_alone(alone, candidates, u, z, settings, failures))
     # sets compose their effects in the order of the single fits (best first)
     board = effect_sets(physics, [c.effect for _, c, _ in ranked], shared)
     singles = [(c.effect.name, r) for r, c, _ in ranked]
-    steps = _forward(board, ranked, u, z, settings, base_rmse, failures)
+    steps = _released(settings, _forward(board, ranked, u, z, settings, base_rmse, failures))
     steps = _by_size(steps + _nested(ranked, base_rmse, settings))
     trail, fits = [("declared physics", declared_cv)], {}
     for label, score, fitted in _sets_cv(board, steps, u, z, settings, failures):
@@ -810,15 +844,15 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
     failures: list[str] = []
     notes: list[str] = []
     clock = StageClock()
-    with clock.stage("declared physics"):
+    with _stage(clock, "declared physics", settings):
         baseline, start, run, declared_cv = _fit_declared(physics, u, z, settings)
         facts = range_violations(z, run.outputs, _output_names(physics, z.shape[1]))
-    with clock.stage("evidence"):
+    with _stage(clock, "evidence", settings):
         evidence, hypotheses = _read_evidence(start, library, u, z, settings, failures)
         snapshot = copy.copy(evidence)  # the physics-only fit, kept when the path refits it
     fits = {"baseline": (baseline, None, declared_cv)}
     if settings.fit_delta:
-        with clock.stage(MODEL_LABELS["with_delta"]):
+        with _stage(clock, MODEL_LABELS["with_delta"], settings):
             # the evidence estimator has the path's settings when CV fits whole blocks
             reuse = evidence if settings.cv_horizon is None else None
             fits["with_delta"] = _scored_delta(
@@ -827,13 +861,13 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
             hypotheses = hypotheses + _delta_hypotheses(
                 fits["with_delta"][0], u, fits["with_delta"][2], declared_cv, settings, notes
             )
-    with clock.stage("effect selection"):
+    with _stage(clock, "effect selection", settings):
         candidates = _candidates(start, library, hypotheses, facts, run, u, settings)
         effects, trail, singles, warm, set_fits = _select_effects(
             start, candidates, u, z, settings, _rmse(run.outputs, z), failures, declared_cv
         )
         notes += _equivalents(effects, singles, settings.tolerance)
-    with clock.stage(MODEL_LABELS["final"]):
+    with _stage(clock, MODEL_LABELS["final"], settings):
         augmented = augment(start, *effects).with_parameters(**warm)
         final = _attempt(
             failures, "augmented physics", fit_continued, _estimator(augmented, settings), u, z,
@@ -841,7 +875,7 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
         ) or baseline  # fmt: skip
     fits["final"] = (final, None, dict(trail).get(_label(effects), declared_cv))
     if settings.fit_delta:
-        with clock.stage(MODEL_LABELS["final_with_delta"]):
+        with _stage(clock, MODEL_LABELS["final_with_delta"], settings):
             fits["final_with_delta"] = _scored_delta(
                 "final_with_delta", warm_physics(augmented, final), library, u, z, settings,
                 failures,
