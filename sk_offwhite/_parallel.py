@@ -30,7 +30,9 @@ def _recording(function: Callable, release_after: bool, *args):
     return value, [(str(w.message), w.category) for w in caught]
 
 
-def launch(function: Callable, arguments: Iterable[tuple], n_jobs: int | None, release_after=False):
+def launch(
+    function: Callable, arguments: Iterable[tuple], n_jobs: int | None, release_after: bool = False
+):
     """``function(*args)`` for each tuple of ``arguments``: computed now (one job), or
     started now in ``n_jobs`` worker processes (joblib's convention: ``-1`` all cores),
     whose results arrive while the caller goes on. Pass the result to :func:`gather`.
