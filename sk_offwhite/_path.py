@@ -108,14 +108,11 @@ class GammaPath:
 
     @property
     def cv_mean(self) -> np.ndarray | None:
-        return None if self.cv_error is None else np.mean(self.cv_error, axis=1)
+        return None if self.cv_error is None else _fold_statistics(self.cv_error)[0]
 
     @property
     def cv_std(self) -> np.ndarray | None:
-        if self.cv_error is None:
-            return None
-        with np.errstate(invalid="ignore"):  # nan where a fold diverged
-            return np.std(self.cv_error, axis=1)
+        return None if self.cv_error is None else _fold_statistics(self.cv_error)[1]
 
     @property
     def best_gamma(self) -> float | None:
@@ -222,8 +219,7 @@ def _choose(
     """Lowest mean CV error, or the largest :math:`\\gamma` within one standard error; with
     ``stop_at_divergence``, among the :math:`\\gamma` before the first whose mean is not
     finite (all of them if that is the first)."""
-    with np.errstate(invalid="ignore"):  # a diverged fold's std is nan
-        mean, std = np.mean(cv_error, axis=1), np.std(cv_error, axis=1)
+    mean, std = _fold_statistics(cv_error)
     if not np.any(np.isfinite(mean)):
         raise ValueError("every fit of the path diverged on its held-out blocks.")
     if stop_at_divergence and np.isfinite(mean[0]):
@@ -234,6 +230,12 @@ def _choose(
     limit = mean[best] + std[best] / np.sqrt(cv_error.shape[1])
     within = np.flatnonzero((mean <= limit) & (gammas >= gammas[best]))
     return int(within[np.argmax(gammas[within])])
+
+
+def _fold_statistics(cv_error: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and standard deviation over the folds (``nan`` std where a fold diverged)."""
+    with np.errstate(invalid="ignore"):
+        return np.mean(cv_error, axis=1), np.std(cv_error, axis=1)
 
 
 def _first_divergence(errors: np.ndarray) -> int:

@@ -143,9 +143,8 @@ class LoopSettings:
         if self.selection not in ("cv", "tail"):
             raise ValueError(f"selection must be 'cv' or 'tail', got {self.selection!r}.")
         if self.lm_scaling not in LM_SCALINGS:
-            raise ValueError(
-                f"lm_scaling must be 'per-variable' or 'global', got {self.lm_scaling!r}."
-            )
+            rules = " or ".join(map(repr, LM_SCALINGS))
+            raise ValueError(f"lm_scaling must be {rules}, got {self.lm_scaling!r}.")
         if not 0.0 < self.tail_fraction < 1.0:
             raise ValueError(f"tail_fraction must be in (0, 1), got {self.tail_fraction!r}.")
         if self.max_candidates is not None and self.max_candidates < 1:
