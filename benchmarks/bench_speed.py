@@ -1,6 +1,7 @@
 """Speed of sk_offwhite, measured the way a user meets it: cold, warm, per step, per grid.
 
-Run with ``python benchmarks/bench_speed.py [--rounds 3] [--main-job] [--out DIR]``. One run
+Run with ``python benchmarks/bench_speed.py [--rounds 3] [--main-job] [--fused-loops]
+[--out DIR]``. One run
 prints (and writes ``bench_speed.md`` / ``.json`` in ``--out``, default
 ``reports/benchmarks``):
 
@@ -21,6 +22,10 @@ prints (and writes ``bench_speed.md`` / ``.json`` in ``--out``, default
 * **main job** (``--main-job``) — the README's closed loop on the Cascaded Tanks in a
   fresh process, split into XLA compilation, tracing, lowering and the rest
   (``jax.monitoring``), and its peak RSS, without the on-disk compilation cache.
+
+Everything runs with XLA's default for loops on CPU unless ``--fused-loops`` is given, which
+calls :func:`sk_offwhite.enable_fused_loops` first (inherited by every process the script
+starts, the main job included).
 """
 
 from __future__ import annotations
@@ -283,7 +288,8 @@ monitoring.register_event_duration_secs_listener(
 sys.path.insert(0, {examples!r})
 import cascaded_tanks_loop
 start = time.perf_counter()
-cascaded_tanks_loop.main(["--out", {out!r}, "--quiet", "--no-cache", "--n-jobs", "1"])
+cascaded_tanks_loop.main(["--out", {out!r}, "--quiet", "--no-cache", "--n-jobs", "1"]
+                         + ([] if {fused!r} else ["--no-fused-loops"]))
 print(json.dumps({{"total": time.perf_counter() - start,
        "compile": seconds["/jax/core/compile/backend_compile_duration"],
        "trace": seconds["/jax/core/compile/jaxpr_trace_duration"],
@@ -292,10 +298,12 @@ print(json.dumps({{"total": time.perf_counter() - start,
 """
 
 
-def main_job(out: Path) -> dict:
+def main_job(out: Path, fused_loops: bool) -> dict:
     """The README's main job in a fresh process, split by ``jax.monitoring``: in one process
     (``--n-jobs 1``), since the monitoring events of worker processes are not seen here."""
-    code = MAIN_JOB.format(examples=str(HERE.parent / "examples"), out=str(out / "main_job"))
+    code = MAIN_JOB.format(
+        examples=str(HERE.parent / "examples"), out=str(out / "main_job"), fused=fused_loops
+    )
     result = subprocess.run(
         [sys.executable, "-W", "ignore", "-c", code], capture_output=True, text=True, check=True
     )
@@ -307,7 +315,9 @@ def main_job(out: Path) -> dict:
 
 
 def _markdown(results: dict) -> str:
-    lines = [f"Machine: {results['machine']}", "", "## Fit, fresh process (s)", ""]
+    loops = "fused (enable_fused_loops)" if results["fused_loops"] else "XLA's default"
+    lines = [f"Machine: {results['machine']}; loops on CPU: {loops}", ""]
+    lines += ["## Fit, fresh process (s)", ""]
     lines += ["| contender | import | cold (min / median) | warm (min / median) |",
               "|---|---|---|---|"]  # fmt: skip
     for name, row in results["fit"].items():
@@ -339,8 +349,15 @@ def main(argv=None):
     parser.add_argument("--repeats", type=int, default=20)
     parser.add_argument("--main-job", action="store_true")
     parser.add_argument("--out", default="reports/benchmarks")
+    parser.add_argument(
+        "--fused-loops", action="store_true", help="sk_offwhite.enable_fused_loops() first"
+    )
     parser.add_argument("--one", choices=sorted(CONTENDERS), help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.fused_loops:
+        from sk_offwhite import enable_fused_loops
+
+        enable_fused_loops()
     if args.one:
         print(json.dumps(one_process(args.one)))
         return
@@ -349,13 +366,14 @@ def main(argv=None):
     results = {
         "machine": f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
         f"Python {platform.python_version()}",
+        "fused_loops": args.fused_loops,
         "fit": cold_and_warm(args.rounds),
         "per_step": per_step(args.repeats),
         "grid": grid_against_one(),
         "memory": memory(),
     }
     if args.main_job:
-        results["main_job"] = main_job(out)
+        results["main_job"] = main_job(out, args.fused_loops)
     results["peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     text = _markdown(results)
     print(text)

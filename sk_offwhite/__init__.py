@@ -1,5 +1,6 @@
 """sk_offwhite: physics-based multi-step system identification with sparse corrections."""
 
+from ._backend import enable_fused_loops
 from ._basis import RidgeBasis, compile_basis
 from ._cache import enable_compilation_cache, release_compiled_programs, release_package_programs
 from ._effects import (
@@ -57,6 +58,7 @@ __all__ = [
     "augment",
     "compile_basis",
     "enable_compilation_cache",
+    "enable_fused_loops",
     "release_compiled_programs",
     "release_package_programs",
     "expected_failed_checks",

@@ -16,6 +16,10 @@ if "JAX_COMPILATION_CACHE_DIR" not in os.environ:
     CREATED_CACHE = tempfile.mkdtemp(prefix="sk_offwhite_jax_")
     os.environ["JAX_COMPILATION_CACHE_DIR"] = CREATED_CACHE
 
+from sk_offwhite import enable_fused_loops  # noqa: E402 (imports JAX, starts no backend)
+
+enable_fused_loops()  # as the examples do; test_backend.py compares with XLA's default
+
 import jax  # noqa: E402
 import jax.numpy as jnp  # noqa: E402
 import numpy as np  # noqa: E402

@@ -1,0 +1,89 @@
+"""Opt-in XLA setting for the CPU: each simulation loop compiled into one kernel.
+
+XLA on CPU runs a ``while`` loop (a ``lax.scan``) in one of two ways: a loop whose cost
+analysis counts fewer bytes accessed than a threshold (1 kB by default) is compiled into
+one kernel; a larger one runs its body as separate operations, each dispatched at every
+step. A grey-box step with a few effects and a dictionary is above that threshold, and
+its derivatives far above, so each simulated step pays a dozen dispatches for a few
+hundred floating-point operations. Raising the threshold compiles the whole loop into one
+kernel, as XLA on CPU did before JAX 0.4.32. The package never raises it by itself: it is
+set through ``XLA_FLAGS``, the process's configuration of XLA, which is the
+application's to decide (the examples raise it; ``--no-fused-loops`` keeps them off it).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import warnings
+
+__all__ = ["FUSED_LOOP_BYTES", "enable_fused_loops"]
+
+FUSED_LOOP_BYTES = 10**9
+"""The threshold :func:`enable_fused_loops` sets (bytes accessed by one loop, as XLA's
+cost analysis counts them): every loop of the package's programs is below it."""
+
+_OPTION = "xla_cpu_small_while_loop_byte_threshold"
+_EXTRA = "--xla_backend_extra_options="
+
+
+def enable_fused_loops(byte_limit: int = FUSED_LOOP_BYTES) -> bool:
+    r"""Compile every ``while`` loop (simulation, Jacobian) accessing fewer than
+    ``byte_limit`` bytes into one kernel on CPU, in this process and in the processes it
+    starts afterwards (joblib and Dask workers, ``GridSearchCV(n_jobs=...)``).
+
+    Adds ``xla_cpu_small_while_loop_byte_threshold`` to XLA's backend options in
+    ``XLA_FLAGS``, which XLA reads once, when JAX starts its CPU backend: call this before
+    the first JAX computation. The results are the same up to rounding. Measured on the
+    Cascaded Tanks with three effects and a 10-term dictionary (704 samples, 31 free
+    variables, jax 0.10.2): a residual and Jacobian 2.07 against 0.52 ms, a trial step
+    0.79 against 0.22 ms; the README's main job 49 against 33 s.
+
+    Parameters
+    ----------
+    byte_limit : int, default=FUSED_LOOP_BYTES
+        Loops whose cost analysis counts fewer bytes accessed are compiled into one kernel.
+
+    Returns
+    -------
+    bool
+        Whether loops are compiled into one kernel in this process: ``False`` (with a
+        warning) when JAX's backend had already started, in which case only processes
+        started afterwards are; ``True`` when the option was set now or was already in
+        ``XLA_FLAGS`` (then it is left as it is: the application's value wins).
+    """
+    if int(byte_limit) <= 0:
+        raise ValueError(f"byte_limit must be a positive number of bytes, got {byte_limit!r}.")
+    flags = os.environ.get("XLA_FLAGS", "")
+    if _OPTION in flags:
+        return True
+    os.environ["XLA_FLAGS"] = with_backend_option(flags, f"{_OPTION}={int(byte_limit)}")
+    if _backend_started():
+        warnings.warn(
+            "enable_fused_loops: JAX's backend has already started in this process, so its "
+            "loops keep XLA's default; processes started from now on compile them into one "
+            "kernel. Call it before the first JAX computation.",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+        return False
+    return True
+
+
+def with_backend_option(flags: str, option: str) -> str:
+    """``flags`` (an ``XLA_FLAGS`` value) with ``option`` (``name=value``) added to its
+    ``--xla_backend_extra_options`` list, which is created if missing."""
+    match = re.search(r"--xla_backend_extra_options=(\S*)", flags)
+    if match is None:
+        return f"{flags} {_EXTRA}{option}".strip()
+    merged = ",".join(filter(None, [match.group(1), option]))
+    return flags[: match.start()] + _EXTRA + merged + flags[match.end() :]
+
+
+def _backend_started() -> bool:
+    """Whether JAX has started a backend in this process (``False`` if it cannot say)."""
+    try:
+        from jax._src.xla_bridge import backends_are_initialized
+    except ImportError:  # pragma: no cover - a JAX without it
+        return False
+    return bool(backends_are_initialized())
