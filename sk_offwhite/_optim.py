@@ -16,7 +16,7 @@ Jacobian and sparse normal equations.
 from __future__ import annotations
 
 import warnings
-from functools import partial
+from functools import lru_cache, partial
 from typing import NamedTuple
 
 import jax
@@ -40,6 +40,7 @@ __all__ = [
     "linearised",
     "lm_loop",
     "majorised_cost",
+    "n_residuals",
     "run_optax",
 ]
 
@@ -243,8 +244,7 @@ def levenberg_marquardt(
 ) -> SolverResult:
     r"""Projected Levenberg-Marquardt on :math:`\|r(\cdot)\|^2` with the dense Jacobian
     (see :func:`lm_loop` for the steps and stopping rules)."""
-    shape = jax.eval_shape(partial(free_residuals, model=model, layout=layout), free0, problem)
-    forward = free0.shape[0] <= int(shape.shape[0])
+    forward = free0.shape[0] <= n_residuals(free0, problem, model, layout)
     static = dict(model=model, layout=layout)
 
     def linearise(free):
@@ -259,6 +259,22 @@ def levenberg_marquardt(
         linearise, trial, free0, problem, max_iter=max_iter, tol=tol, verbose=verbose,
         scaling=scaling,
     )  # fmt: skip
+
+
+def n_residuals(free, problem: Problem, model: Model, layout: Layout) -> int:
+    """Length of :func:`free_residuals` at ``free``: traced once per model, layout and
+    array shapes (a fit of the loop's many fits of one structure asks again)."""
+    leaves, tree = jax.tree_util.tree_flatten((free, problem))
+    shapes = tuple((np.shape(leaf), np.result_type(leaf)) for leaf in leaves)
+    return _residual_count(model, layout, tree, shapes)
+
+
+@lru_cache(maxsize=256)
+def _residual_count(model: Model, layout: Layout, tree, shapes) -> int:
+    specs = [jax.ShapeDtypeStruct(shape, dtype) for shape, dtype in shapes]
+    free, problem = jax.tree_util.tree_unflatten(tree, specs)
+    function = partial(free_residuals, model=model, layout=layout)
+    return int(jax.eval_shape(function, free, problem).shape[0])
 
 
 def lm_loop(
