@@ -19,7 +19,7 @@ import numpy as np
 import pysindy as ps
 from sklearn.model_selection import GridSearchCV, KFold
 
-from sk_offwhite import GreyBoxSparseRegressor
+from sk_offwhite import GreyBoxSparseRegressor, enable_fused_loops
 from sk_offwhite.datasets import cascaded_tanks_physics, make_cascaded_tanks
 
 
@@ -32,6 +32,7 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="short run (for CI)")
     quick = parser.parse_args(argv).quick
+    enable_fused_loops()  # before anything runs on JAX: one kernel per simulation loop
     n_samples, gammas, max_iter = (300, [1e-3], 40) if quick else (1024, [1e-4, 1e-3, 1e-2], 300)
     horizon = 64 if quick else 256
     data = make_cascaded_tanks(n_samples=n_samples, noise_std=0.02, random_state=0)
