@@ -262,11 +262,16 @@ def levenberg_marquardt(
 
 
 def n_residuals(free, problem: Problem, model: Model, layout: Layout) -> int:
-    """Length of :func:`free_residuals` at ``free``: traced once per model, layout and
-    array shapes (a fit of the loop's many fits of one structure asks again)."""
+    """Length of :func:`free_residuals` at ``free``, traced once per model, layout and
+    array shapes and then looked up (the closed loop runs many fits of each structure)."""
     leaves, tree = jax.tree_util.tree_flatten((free, problem))
-    shapes = tuple((np.shape(leaf), np.result_type(leaf)) for leaf in leaves)
+    shapes = tuple((np.shape(leaf), _dtype(leaf)) for leaf in leaves)
     return _residual_count(model, layout, tree, shapes)
+
+
+def _dtype(leaf) -> np.dtype:
+    """The dtype of an array leaf, or NumPy's for a Python scalar."""
+    return np.dtype(leaf.dtype) if hasattr(leaf, "dtype") else np.result_type(leaf)
 
 
 @lru_cache(maxsize=256)
