@@ -105,8 +105,5 @@ def release_package_programs() -> int:
                 cleared[id(value)] = value
     for function in cleared.values():
         function.clear_cache()
-    from ._optim import _residual_count
-
-    _residual_count.cache_clear()  # it holds the models it has seen
     gc.collect()  # the programs are freed with the last reference to them
     return len(cleared)

@@ -16,7 +16,7 @@ Jacobian and sparse normal equations.
 from __future__ import annotations
 
 import warnings
-from functools import lru_cache, partial
+from functools import partial
 from typing import NamedTuple
 
 import jax
@@ -261,25 +261,15 @@ def levenberg_marquardt(
     )  # fmt: skip
 
 
+_residuals_program = jax.jit(free_residuals, static_argnames=("model", "layout"))
+""":func:`free_residuals` jitted, only for its shape: ``eval_shape`` traces it once per
+model, layout and array shapes and keeps the trace with the package's other programs."""
+
+
 def n_residuals(free, problem: Problem, model: Model, layout: Layout) -> int:
-    """Length of :func:`free_residuals` at ``free``, traced once per model, layout and
-    array shapes and then looked up (the closed loop runs many fits of each structure)."""
-    leaves, tree = jax.tree_util.tree_flatten((free, problem))
-    shapes = tuple((np.shape(leaf), _dtype(leaf)) for leaf in leaves)
-    return _residual_count(model, layout, tree, shapes)
-
-
-def _dtype(leaf) -> np.dtype:
-    """The dtype of an array leaf, or NumPy's for a Python scalar."""
-    return np.dtype(leaf.dtype) if hasattr(leaf, "dtype") else np.result_type(leaf)
-
-
-@lru_cache(maxsize=256)
-def _residual_count(model: Model, layout: Layout, tree, shapes) -> int:
-    specs = [jax.ShapeDtypeStruct(shape, dtype) for shape, dtype in shapes]
-    free, problem = jax.tree_util.tree_unflatten(tree, specs)
-    function = partial(free_residuals, model=model, layout=layout)
-    return int(jax.eval_shape(function, free, problem).shape[0])
+    """Length of :func:`free_residuals` at ``free`` (traced once per structure and
+    shapes: the closed loop runs many fits of each)."""
+    return int(_residuals_program.eval_shape(free, problem, model=model, layout=layout).shape[0])
 
 
 def lm_loop(
