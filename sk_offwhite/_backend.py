@@ -1,4 +1,5 @@
-"""Opt-in XLA setting for the CPU: each simulation loop compiled into one kernel.
+"""How the package meets XLA's CPU backend: each simulation loop compiled into one kernel
+(opt-in), and host arrays moved to the device without compiling anything.
 
 XLA on CPU runs a ``while`` loop (a ``lax.scan``) in one of two ways: a loop whose cost
 analysis counts fewer bytes accessed than a threshold (1 kB by default) is compiled into
@@ -9,6 +10,10 @@ hundred floating-point operations. Raising the threshold compiles the whole loop
 kernel, as XLA on CPU did before JAX 0.4.32. The package never raises it by itself: it is
 set through ``XLA_FLAGS``, the process's configuration of XLA, which is the
 application's to decide (the examples raise it; ``--no-fused-loops`` keeps them off it).
+
+``jnp.asarray`` of a NumPy array outside a trace runs a one-operation XLA program, compiled
+on its first use for each shape and dtype (5-16 ms each, a dozen of them in a first fit);
+:func:`to_device` transfers the same values with ``jax.device_put``, which compiles nothing.
 """
 
 from __future__ import annotations
@@ -17,7 +22,10 @@ import os
 import re
 import warnings
 
-__all__ = ["FUSED_LOOP_BYTES", "enable_fused_loops"]
+import jax
+import numpy as np
+
+__all__ = ["FUSED_LOOP_BYTES", "enable_fused_loops", "to_device"]
 
 FUSED_LOOP_BYTES = 10**9
 """The threshold :func:`enable_fused_loops` sets (bytes accessed by one loop, as XLA's
@@ -87,3 +95,9 @@ def _backend_started() -> bool:
     except ImportError:  # pragma: no cover - a JAX without it
         return False
     return bool(backends_are_initialized())
+
+
+def to_device(values, dtype=None):
+    """``values`` as a JAX array of ``dtype`` (NumPy's rules; the enclosing ``enable_x64``
+    decides the width), moved with ``jax.device_put``: no program is compiled or run."""
+    return jax.device_put(np.asarray(values, dtype=dtype))

@@ -8,7 +8,6 @@ import warnings
 from numbers import Integral, Real
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 import optax
 from sklearn.base import BaseEstimator, RegressorMixin, _fit_context, clone
@@ -18,6 +17,7 @@ from sklearn.utils import Bunch, metadata_routing
 from sklearn.utils._param_validation import Interval, StrOptions
 from sklearn.utils.validation import _check_feature_names, _check_sample_weight, check_is_fitted
 
+from ._backend import to_device
 from ._basis import compile_basis
 from ._equations import format_equations
 from ._objective import CostWeights
@@ -607,8 +607,8 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
 
     def _simulate_record(self, model, u, x0):
         """States, outputs and correction terms of a free run from ``x0``."""
-        params = {k: jnp.asarray(v) for k, v in self._fitted_blocks().items()}
-        states, outputs, deltas = free_run(model, params, jnp.asarray(x0, float), jnp.asarray(u))
+        params = {k: to_device(v) for k, v in self._fitted_blocks().items()}
+        states, outputs, deltas = free_run(model, params, to_device(x0, float), to_device(u))
         return np.asarray(states), np.asarray(outputs), np.asarray(deltas)
 
     def _initial_state(self, model, u, z_init, x0):

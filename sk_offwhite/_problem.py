@@ -13,6 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._backend import to_device
 from ._layout import Layout
 from ._objective import CostWeights
 from ._optim import Problem, SolverResult, levenberg_marquardt, run_optax
@@ -168,9 +169,7 @@ def bound_blocks(physics, blocks) -> tuple[dict, dict]:
 def cost_weights(weights) -> CostWeights:
     """:class:`CostWeights` of JAX arrays from a ``CostWeights`` or the five scalar weights
     ``(gamma, lam, nu, shooting, beta)`` (scales 1)."""
-    return CostWeights(
-        *(None if w is None else jnp.asarray(np.asarray(w, dtype=float)) for w in weights)
-    )
+    return CostWeights(*(None if w is None else to_device(w, float) for w in weights))
 
 
 def make_problem(layout, blocks, free, bounds, segments, weights) -> tuple[Problem, jax.Array]:
@@ -181,16 +180,16 @@ def make_problem(layout, blocks, free, bounds, segments, weights) -> tuple[Probl
     lower, upper = (layout.flatten(b)[free_index] for b in bounds)
     omega_free = free.get("omega", np.zeros((0, 0)))
     problem = Problem(
-        Segments(*(jnp.asarray(a, float) for a in segments)),
-        jnp.asarray(base),
-        jnp.asarray(free_index),
-        jnp.asarray(lower),
-        jnp.asarray(upper),
-        jnp.asarray(omega_free, float),
+        Segments(*(to_device(a, float) for a in segments)),
+        to_device(base),
+        to_device(free_index),
+        to_device(lower),
+        to_device(upper),
+        to_device(omega_free, float),
         cost_weights(weights),
-        jnp.ones(free_index.shape[0]),
+        to_device(np.ones(free_index.shape[0])),
     )
-    return problem, jnp.asarray(np.clip(base[free_index], lower, upper))
+    return problem, to_device(np.clip(base[free_index], lower, upper))
 
 
 class SolverOptions(NamedTuple):

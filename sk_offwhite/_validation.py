@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 from sklearn.utils import check_array
 
+from ._backend import to_device
 from ._physics import PhysicsModel
 
 __all__ = ["as_records", "check_inputs", "check_pair", "check_physics", "is_experiment_list"]
@@ -110,9 +110,9 @@ def check_physics(physics: PhysicsModel, n_inputs: int, n_outputs: int, u0) -> N
     """Check dimensions, traceability, shapes and finiteness at the initial guess."""
     if physics.n_inputs != n_inputs:
         raise ValueError(f"u has {n_inputs} column(s) but physics.n_inputs is {physics.n_inputs}.")
-    x0 = jnp.asarray(physics.x0)
-    u0 = jnp.asarray(u0)
-    theta = {k: jnp.asarray(p.value) for k, p in physics.parameters.items()}
+    x0 = to_device(physics.x0)
+    u0 = to_device(u0)
+    theta = {k: to_device(p.value) for k, p in physics.parameters.items()}
     where = "at the initial guess of x0 and the parameters"
     checks = [
         ("physics.step", physics.step, (physics.n_states,)),
@@ -120,7 +120,7 @@ def check_physics(physics: PhysicsModel, n_inputs: int, n_outputs: int, u0) -> N
     ]
     for name, fun, expected in checks:
         _check_result(name, _traceable(name, fun, x0, u0, theta), expected, where)
-        value = np.asarray(fun(x0, u0, theta))
+        value = np.asarray(jax.jit(fun)(x0, u0, theta))  # one program, not one per operation
         if not np.all(np.isfinite(value)):
             raise ValueError(
                 f"{name} returned non-finite values {value} {where}; "

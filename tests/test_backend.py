@@ -105,3 +105,25 @@ def test_the_fit_is_the_same_with_and_without_fused_loops():
     default = json.loads(_run(FIT, ""))
     for a, b in zip(fused, default, strict=True):
         assert a == pytest.approx(b, rel=1e-6, abs=1e-9)
+
+
+COMPILED = (
+    "import json, logging, io, jax, sk_offwhite;"
+    "from sk_offwhite.datasets import make_cascaded_tanks;"
+    "d = make_cascaded_tanks(n_samples=200, random_state=0);"
+    "log = io.StringIO(); logging.getLogger('jax').addHandler(logging.StreamHandler(log));"
+    "jax.config.update('jax_log_compiles', True);"
+    "est = sk_offwhite.GreyBoxSparseRegressor(d.physics, max_iter=20).fit(d.u, d.z);"
+    "est.predict(d.u);"
+    "print(json.dumps([line.split(' of ')[1].split(' ')[0] for line in log.getvalue()"
+    ".splitlines() if line.startswith('Finished XLA compilation')]))"
+)
+"""Prints the names of the XLA programs that a first fit and predict compile (fresh process)."""
+
+
+def test_a_first_fit_compiles_no_single_operation_programs():
+    names = json.loads(_run(COMPILED, None))
+    assert {"jit(_lm_linearise)", "jit(_lm_trial)", "jit(free_run)"} <= set(names), names
+    single = {"jit(stage)", "jit(convert_element_type)", "jit(broadcast_in_dim)", "jit(sqrt)"}
+    assert not single & set(names), names
+    assert len(names) <= 6, names
