@@ -1,17 +1,19 @@
 """Speed of sk_offwhite, measured the way a user meets it: cold, warm, per step, per grid.
 
 Run with ``python benchmarks/bench_speed.py [--rounds 3] [--main-job] [--fused-loops]
-[--out DIR]``. One run
+[--jax-sysid-python PATH] [--only-fit] [--out DIR]``. One run
 prints (and writes ``bench_speed.md`` / ``.json`` in ``--out``, default
 ``reports/benchmarks``):
 
 * **fit, cold and warm** — the physics-only Cascaded Tanks fit (eq. 21 with ``k4`` fixed,
   every other parameter and both initial levels free, the measured estimation record):
   sk_offwhite; scipy ``least_squares`` on a numpy Euler loop of the same model (finite
-  differences); jax-sysid when installed (skipped when absent: version 1.1 requires
-  ``jax<=0.4.31``, so it needs an environment of its own). Each contender runs in a
-  fresh process, contenders alternating, ``--rounds`` times; *cold* is import + first fit
-  + predict in that process, *warm* the same fit again in it. Min and median.
+  differences); jax-sysid, from the environment given by ``--jax-sysid-python`` (its
+  version 1.1 requires ``jax<=0.4.31``, so it needs an environment of its own) or from
+  this one when it is installed here, skipped otherwise. Each contender runs in a fresh
+  process, contenders alternating, ``--rounds`` times: its import, its *first fit*
+  (+ predict, compilation included), *cold* (the two together) and *warm* (the same fit
+  again in that process), min and median, with its JAX version and simulation MSE.
 * **per step** — microseconds per simulated step of what the solver runs: one
   Levenberg-Marquardt linearisation (residual + Jacobian), one trial step (forward only),
   and the plain forward rollout, physics only and with a 10-term dictionary, at 10³ and

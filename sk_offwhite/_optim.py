@@ -25,7 +25,6 @@ import numpy as np
 import optax
 from sklearn.exceptions import ConvergenceWarning
 
-from ._backend import to_device
 from ._layout import Layout
 from ._objective import CostWeights, majoriser_constant, n_fit_residuals, residuals
 from ._rollout import Model
@@ -251,8 +250,7 @@ def levenberg_marquardt(
     def linearise(free):
         return _lm_linearise(free, problem, forward=forward, **static)
 
-    def trial(state, damping, scale):
-        scale = None if scale is None else to_device(scale)
+    def trial(state, damping, scale):  # a NumPy ``scale`` goes in as it is: no conversion
         candidate, cost = _lm_trial(state, damping, scale, problem, **static)
         return candidate, float(cost)
 
