@@ -26,7 +26,13 @@ end give
    max_j ||theta_j - theta_i||_2, as mean +- 1 sigma over the estimates in the hull
    (``sk_offwhite.certify.hull_errors``), in theta and in its first two principal
    components (axes of all the estimates at that noise bound);
-3. Fig. 2 the exact way: the worst-case errors (19)/(20) of each record's linearisation at
+3. Fig. 2 with the paper's populations: the paper's 7500 simulations are 5000 fits with
+   delta and 2500 without, and its Fig. 2 shows both (the fits without delta "clearly
+   biased"). Each run here also fits the physics alone on the same record; FPS is the hull
+   of all the estimates, with and without delta, SFPS that of the certified fits with
+   delta, both in the principal components of all of them (``--no-physics-only`` skips
+   these fits);
+4. Fig. 2 the exact way: the worst-case errors (19)/(20) of each record's linearisation at
    mu = b sqrt(T), FPS over the dictionary without ``x4 x6`` (the full dictionary leaves
    theta4 unbounded) and SFPS on supp(omega_bar) = {x1 x6, x2 x6, x2 x6^2} (box 2-norm),
    mean +- 1 sigma over all runs and over the runs certified under b sqrt(T).
@@ -35,8 +41,8 @@ end give
 (``make_vehicle_lateral(process_noise_bound=...)``); mu = b sqrt(T) still bounds the
 output noise only. ``--speed-range`` changes the range of the speed (default 12-28 m/s,
 so p = 1/v in [0.036, 0.083]): a wider range makes the dictionary columns less collinear.
-``--figures DIR`` writes the Fig. 2 scatter with its hulls and the certified fraction
-against the noise bound.
+``--figures DIR`` writes the Fig. 2 scatter with its hulls (with delta only, and with the
+paper's populations) and the certified fraction against the noise bound.
 
 Usage::
 
@@ -93,6 +99,15 @@ def fit_and_linearise(noise_bound: float, seed: int, n_samples: int, **generator
     return data, linearise_estimator(est, data.u, data.z)
 
 
+def physics_only_theta(data) -> list[float]:
+    """The physical parameters of the physics fitted alone (no dictionary) on ``data``: the
+    paper's estimates "without delta"."""
+    est = GreyBoxSparseRegressor(vehicle_physics_known_registers(data), max_iter=1000)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return est.fit(data.u, data.z).theta_.tolist()
+
+
 def certify_run(lin, mu, level: str = "vertex") -> dict:
     """Theorem 5 on the fit's omega_hat, with the diagnosis as data and as a sentence."""
     cert = certify_estimator(None, None, None, mu, linearisation=lin, level=level)
@@ -124,8 +139,11 @@ def exact_sets(lin, mu: float) -> dict:
     return {k: v.worst_case_norm if v.solved else v.status for k, v in sets.items()}
 
 
-def one_run(noise_bound: float, seed: int, n_samples: int, **generator) -> dict:
-    """Fit, linearise, certify under both rules for mu, and bound FPS/SFPS at b sqrt(T)."""
+def one_run(
+    noise_bound: float, seed: int, n_samples: int, physics_only: bool = True, **generator
+) -> dict:
+    """Fit, linearise, certify under both rules for mu, and bound FPS/SFPS at b sqrt(T);
+    with ``physics_only``, also fit the physics alone on the same record."""
     start = time.perf_counter()
     data, lin = fit_and_linearise(noise_bound, seed, n_samples, **generator)
     mu = noise_bound * np.sqrt(n_samples)
@@ -138,6 +156,8 @@ def one_run(noise_bound: float, seed: int, n_samples: int, **generator) -> dict:
         np.array_equal(lin.omega_hat != 0, data.true_omega.reshape(-1) != 0)
     )
     result["exact_sets"] = exact_sets(lin, mu)
+    if physics_only:
+        result["theta_physics_only"] = physics_only_theta(data)
     result["seconds"] = time.perf_counter() - start
     return result
 
@@ -198,6 +218,31 @@ def hull_table(runs: list[dict], noise_bounds) -> str:
     return "\n".join(lines)
 
 
+def paper_populations_table(runs: list[dict], noise_bounds) -> str:
+    """Markdown table of Fig. 2 with the paper's populations: FPS the hull of every estimate
+    with and without delta, SFPS that of the fits with delta certified under b sqrt(T);
+    worst-case errors over each hull (mean +- 1 sigma, estimates in brackets), in theta and
+    in the first two principal components of all the estimates at that noise bound."""
+    lines = [
+        "| b | space | e^FPS (with and without delta) | e^SFPS (certified, b sqrt(T)) |",
+        "|---|---|---|---|",
+        f"| paper | PCA | {PAPER['FPS']} | {PAPER['SFPS']} |",
+    ]
+    for b in noise_bounds:
+        rows = [r for r in runs if r["noise_bound"] == b and "theta_physics_only" in r]
+        with_delta = np.array([r["theta_hat"] for r in rows]).reshape(-1, 4)
+        alone = np.array([r["theta_physics_only"] for r in rows]).reshape(-1, 4)
+        certified = with_delta[[r[RULES[0]]["certified"] is True for r in rows]]
+        everything = np.vstack([with_delta, alone])
+        if len(everything) < 2:
+            continue
+        pca = [principal_components(v, everything) if len(v) else v
+               for v in (everything, certified)]  # fmt: skip
+        for space, sets in (("theta", (everything, certified)), ("PCA", pca)):
+            lines.append(f"| {b:g} | {space} | " + " | ".join(map(_cell, sets)) + " |")
+    return "\n".join(lines)
+
+
 def _stat(values) -> str:
     values = [v for v in values if isinstance(v, float)]
     return f"{np.mean(values):.3g} +- {np.std(values):.2g} ({len(values)})" if values else "-"
@@ -250,6 +295,38 @@ def plot_hulls(runs: list[dict], noise_bounds, path: Path) -> None:
     plt.close(fig)
 
 
+def plot_paper_populations(runs: list[dict], noise_bounds, path: Path) -> None:
+    """Fig. 2 with the paper's populations: fits with delta (certified or not) and of the
+    physics alone in the principal components of all of them, the FPS hull over all and
+    the SFPS hull over the certified, one panel per b."""
+    from sk_offwhite.certify import hull_polygon
+
+    fig, axes = plt.subplots(1, len(noise_bounds), figsize=(4 * len(noise_bounds), 4))
+    for ax, b in zip(np.atleast_1d(axes), noise_bounds, strict=True):
+        rows = [r for r in runs if r["noise_bound"] == b and "theta_physics_only" in r]
+        if not rows:
+            continue
+        ok = np.array([r[RULES[0]]["certified"] is True for r in rows], bool)
+        with_delta = np.array([r["theta_hat"] for r in rows]).reshape(-1, 4)
+        alone = np.array([r["theta_physics_only"] for r in rows]).reshape(-1, 4)
+        everything = np.vstack([with_delta, alone])
+        pcs = principal_components(everything)
+        ax.scatter(*pcs[len(rows) :].T, marker="^", c="tab:gray", label="physics alone")
+        ax.scatter(*pcs[: len(rows)][~ok].T, marker="x", c="tab:red", label="delta, not certified")
+        ax.scatter(*pcs[: len(rows)][ok].T, marker="o", c="tab:blue", label="delta, certified")
+        ax.plot(*hull_polygon(pcs).T, "k--", lw=1.5, label="FPS hull (all)")
+        if ok.sum() > 2:
+            ax.plot(*hull_polygon(pcs[: len(rows)][ok]).T, "b-", lw=1.5, label="SFPS hull")
+        ax.set_title(f"b = {b:g}: {ok.sum()}/{len(ok)} certified")
+        ax.set_xlabel("pca_1(theta)")
+        ax.set_ylabel("pca_2(theta)")
+        ax.legend(fontsize="x-small")
+    fig.suptitle("FPS and SFPS with the paper's populations (fits with and without delta)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def plot_fraction(runs: list[dict], noise_bounds, path: Path) -> None:
     """Fraction of runs certified against the noise bound, per rule for mu."""
     fig, ax = plt.subplots(figsize=(5, 3.5))
@@ -280,6 +357,11 @@ def main(argv=None) -> list[dict]:
         default=[12.0, 28.0],
         help="range of the speed v in m/s (p = 1/v; the default is the generator's)",
     )
+    parser.add_argument(
+        "--no-physics-only",
+        action="store_true",
+        help="skip the fit of the physics alone (the paper's estimates without delta)",
+    )
     parser.add_argument("--out", type=Path, default=Path("reports/certificates_sweep.json"))
     parser.add_argument("--figures", type=Path, default=None, help="folder for the figures")
     args = parser.parse_args(argv)
@@ -290,7 +372,7 @@ def main(argv=None) -> list[dict]:
     runs = []
     for seed in range(args.first_seed, args.first_seed + args.seeds):
         for b in args.noise_bounds:
-            runs.append(one_run(b, seed, args.n_samples, **generator))
+            runs.append(one_run(b, seed, args.n_samples, not args.no_physics_only, **generator))
             r = runs[-1]
             for rule in VERDICTS:
                 print(f"b={b:g} seed={seed} mu {rule}: certified={r[rule]['certified']} "
@@ -298,12 +380,14 @@ def main(argv=None) -> list[dict]:
             args.out.write_text(json.dumps(runs, indent=1, default=float))
     print(table(runs, args.noise_bounds))
     print(hull_table(runs, args.noise_bounds))
+    print(paper_populations_table(runs, args.noise_bounds))
     print(exact_table(runs, args.noise_bounds))
     print(f"seconds per run: {np.mean([r['seconds'] for r in runs]):.1f}")
     if args.figures is not None:
         args.figures.mkdir(parents=True, exist_ok=True)
         plot_hulls(runs, args.noise_bounds, args.figures / "fig2_hulls.png")
         plot_fraction(runs, args.noise_bounds, args.figures / "certified_fraction.png")
+        plot_paper_populations(runs, args.noise_bounds, args.figures / "fig2_populations.png")
     return runs
 
 

@@ -194,9 +194,10 @@ def _sweep_module():
     return module
 
 
-def _made_up_run(seed, certified, theta, fps=0.4, sfps=0.07):
+def _made_up_run(seed, certified, theta, fps=0.4, sfps=0.07, alone=None):
     verdict = {"certified": certified, "mu": 0.00224}
-    return {
+    physics_only = {} if alone is None else {"theta_physics_only": alone}
+    return physics_only | {
         "noise_bound": 5e-5,
         "seed": seed,
         "b sqrt(T)": verdict,
@@ -225,3 +226,23 @@ def test_sweep_tables_count_and_hull_the_right_runs(tmp_path):
     sweep.plot_hulls(runs, [5e-5], tmp_path / "hulls.png")
     sweep.plot_fraction(runs, [5e-5], tmp_path / "fraction.png")
     assert (tmp_path / "hulls.png").stat().st_size > 0 and (tmp_path / "fraction.png").exists()
+
+
+def test_paper_populations_hull_the_fits_with_and_without_delta(tmp_path):
+    sweep = _sweep_module()
+    a = np.array([2.0, -1.0, -1.0, 3.7])
+    with_delta = [a, a + [0, 0, 0, 3.0], a + [4.0, 0, 0, 0]]
+    alone = (a + [0, 12.0, 0, 0]).tolist()
+    runs = [_made_up_run(k, k < 2, t.tolist(), alone=alone) for k, t in enumerate(with_delta)]
+    lines = sweep.paper_populations_table(runs, [5e-5]).splitlines()
+    assert lines[2] == "| paper | PCA | 1.79 +- 0.28 | 1.19 +- 0.19 |"
+    # largest distances: 12 from a, sqrt(9 + 144) from b, sqrt(16 + 144) from c and from each
+    # of the three fits of the physics alone (at one point); SFPS: a and b, 3 apart
+    farthest = [12.0, np.sqrt(153.0)] + [np.sqrt(160.0)] * 4
+    expected = f"{np.mean(farthest):.3g} +- {np.std(farthest):.2g} (6) | 3 +- 0 (2) |"
+    assert lines[3] == f"| 5e-05 | theta | {expected}"
+    assert lines[4].startswith("| 5e-05 | PCA |") and lines[4].endswith("(2) |")
+    without = [{k: v for k, v in r.items() if k != "theta_physics_only"} for r in runs]
+    assert len(sweep.paper_populations_table(without, [5e-5]).splitlines()) == 3  # no rows
+    sweep.plot_paper_populations(runs, [5e-5], tmp_path / "populations.png")
+    assert (tmp_path / "populations.png").stat().st_size > 0
