@@ -32,8 +32,14 @@ import numpy as np
 import pysindy as ps
 from sklearn.base import clone
 
-from sk_offwhite import GreyBoxSparseRegressor, Parameter, enable_fused_loops
-from sk_offwhite._effects import SensorCalibration, augment, relaxations
+from sk_offwhite import (
+    GreyBoxSparseRegressor,
+    Parameter,
+    RelaxedLaw,
+    SensorCalibration,
+    augment,
+    enable_fused_loops,
+)
 from sk_offwhite.datasets import cascaded_tanks_physics, load_cascaded_tanks
 from sk_offwhite.loop import (
     LoopSettings,
@@ -120,7 +126,8 @@ def score(label, physics, fitted, data, settings, folds=(3,), tail=False, delay=
 
 def variants(result, declared):
     """``(label, physics, delay)`` of each variant of the chosen structure."""
-    laws = {r.parameter: r for r in relaxations(declared)}
+    laws = {name: RelaxedLaw(name, spec.value, spec.bounds)
+            for name, spec in declared.parameters.items() if spec.relaxable}  # fmt: skip
     effects = list(result.effects)
     sensors = [e for e in effects if isinstance(e, SensorCalibration)]
     yield "chosen (the loop's final model)", augment(declared, *effects), 0
