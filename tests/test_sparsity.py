@@ -5,6 +5,7 @@ is ``a x + b u`` and the dictionary (degree-2 monomials of ``x`` and ``u``) must
 ``x^2`` alone; the linear terms duplicate the physics and must stay out.
 """
 
+import copy
 import warnings
 
 import jax.numpy as jnp
@@ -16,7 +17,7 @@ from sklearn.model_selection import KFold, cross_val_score
 
 from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel, fit_gamma_path, gamma_grid
 from sk_offwhite._optim import SolverResult
-from sk_offwhite._path import _choose, _fold_errors
+from sk_offwhite._path import _better_start, _choose, _fold_errors, penalised_objective
 from sk_offwhite._sparsity import _no_worse_than, _Stage
 from sk_offwhite.loop import held_out_rmse
 
@@ -303,3 +304,19 @@ def test_a_fold_fits_nothing_below_its_first_divergence():
         errors = _fold_errors(est, u, z, np.arange(20), np.arange(20, 40), gammas, 0, 0.0, True)
     np.testing.assert_allclose(errors[:, 0], [1e-1, 1e-2, np.inf, np.inf, np.inf])
     assert est.n_fits == 3
+
+
+def test_the_chosen_fit_is_the_better_of_two_starts(path):
+    u, z = _plant(N_SAMPLES, seed=1, noise=1e-3)
+    good = path.estimator
+    assert path.start in ("continuation", "reference")
+    kept, start = _better_start(copy.copy(good), u, z, None)
+    assert start == "continuation" and kept.fit_error_ == good.fit_error_
+    # a continuation stuck in a worse basin (its objective inflated) gives way to the fit
+    # from the physics reference, which reaches the good one's objective
+    stuck = copy.copy(good)
+    stuck.fit_error_ = 10 * good.fit_error_
+    fresh, start = _better_start(stuck, u, z, None)
+    assert start == "reference" and fresh is not stuck
+    assert penalised_objective(fresh) == pytest.approx(penalised_objective(good), rel=1e-6)
+    assert penalised_objective(good) >= good.fit_error_**2
