@@ -458,10 +458,8 @@ def fit_gamma_path(
     best = None
     if cv_error is not None:
         best = _choose(cv_error, values, one_standard_error, stop_at_divergence)
-    chosen, start = (
-        (int(np.flatnonzero(~failed)[-1]), "continuation") if best is None else (best, None)
-    )
-    if start is None:
+    chosen, start = int(np.flatnonzero(~failed)[-1]) if best is None else best, "continuation"
+    if best is not None:
         snapshots[chosen], start = _better_start(snapshots[chosen], u_arr, z_arr, sample_index)
     if start == "reference" and sample_index is None:
         train_error[chosen] = _normalised_rmse(snapshots[chosen], u_arr, z_arr, 0)

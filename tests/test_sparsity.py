@@ -320,3 +320,5 @@ def test_the_chosen_fit_is_the_better_of_two_starts(path):
     assert start == "reference" and fresh is not stuck
     assert penalised_objective(fresh) == pytest.approx(penalised_objective(good), rel=1e-6)
     assert penalised_objective(good) >= good.fit_error_**2
+    without_cv = _quiet(fit_gamma_path, _estimator(), u, z, n_gammas=3)
+    assert without_cv.start == "continuation"  # nothing scored a fit from the reference
