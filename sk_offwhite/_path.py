@@ -357,6 +357,18 @@ def fit_gamma_path(
     :math:`\gamma_{k+1}` and the smaller values are left out of the result; each CV fold
     ends its own path by the same rule and keeps its last model's held-out errors.
 
+    With ``cv``, the fit returned at the chosen :math:`\gamma` has two starts: the path's
+    continuation and the physics reference, from which every fold's fit starts (the kind
+    of fit the CV scored); the one with the lower penalised objective
+    :math:`F + \gamma\sum s|\Omega|` is kept (``GammaPath.start`` says which).
+    Continuation can carry a support from a larger :math:`\gamma` into a basin the data no
+    longer support (the noise-free vehicle, seed 4: a wrong 3-term support at fit error
+    3.1e-3 against Δ's 3 terms at 3.2e-14 from the reference). Without ``cv`` the last
+    :math:`\gamma`'s continuation is returned: nothing has scored a fit from the reference
+    there, and at a tiny :math:`\gamma` on noisy data its lower objective is a fit of the
+    noise (the noisy vehicle, 2000 samples, no CV: θ error 0.80 against the continuation's
+    0.0023).
+
     Parameters
     ----------
     estimator : GreyBoxSparseRegressor
@@ -402,18 +414,6 @@ def fit_gamma_path(
         :math:`1.46\cdot10^{-5}`, not at :math:`2.03\cdot10^{-6}`, then again below, and
         a choice there changed with the units of the data). ``False`` chooses among every
         finite mean, as before.
-
-    With ``cv``, the fit returned at the chosen :math:`\gamma` has two starts: the path's
-    continuation and the physics reference, from which every fold's fit starts (the kind
-    of fit the CV scored); the one with the lower penalised objective
-    :math:`F + \gamma\sum s|\Omega|` is kept (``GammaPath.start`` says which).
-    Continuation can carry a support from a larger :math:`\gamma` into a basin the data no
-    longer support (the noise-free vehicle, seed 4: a wrong 3-term support at fit error
-    3.1e-3 against Δ's 3 terms at 3.2e-14 from the reference). Without ``cv`` the last
-    :math:`\gamma`'s continuation is returned: nothing has scored a fit from the reference
-    there, and at a tiny :math:`\gamma` on noisy data its lower objective is a fit of the
-    noise (the noisy vehicle, 2000 samples, no CV: θ error 0.80 against the continuation's
-    0.0023).
 
     Returns
     -------
