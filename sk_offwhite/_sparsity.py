@@ -45,6 +45,7 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
+from ._backend import to_device
 from ._objective import n_fit_residuals
 from ._optim import Problem, SolverResult, fit_cost, jacobian_columns
 
@@ -269,7 +270,7 @@ def _combine(results: list[SolverResult], free: np.ndarray) -> SolverResult:
 def _active(n_free: int, frozen: np.ndarray) -> jnp.ndarray:
     active = np.ones(n_free)
     active[frozen] = 0.0
-    return jnp.asarray(active)
+    return to_device(active)
 
 
 class _Stage(NamedTuple):
@@ -284,9 +285,16 @@ class _Stage(NamedTuple):
 
 def _reference(stage: _Stage, free0) -> SolverResult:
     """Stage 1: the physics alone (weights frozen at zero)."""
-    start = jnp.asarray(free0).at[stage.omega_at].set(0.0)
+    start = _zeroed(free0, stage.omega_at)
     frozen = stage.problem._replace(active=_active(start.shape[0], stage.omega_at))
     return stage.run(frozen, start)
+
+
+def _zeroed(free, at: np.ndarray) -> jnp.ndarray:
+    """``free`` with the entries ``at`` set to zero, on the device (no program run)."""
+    values = np.array(free, dtype=float)
+    values[at] = 0.0
+    return to_device(values)
 
 
 def _prune(stage: _Stage, free: np.ndarray, scale: np.ndarray, tol: float, gamma: float):
@@ -324,7 +332,7 @@ def _prune(stage: _Stage, free: np.ndarray, scale: np.ndarray, tol: float, gamma
 
 def _prune_and_refit(stage, free, scale, options, results) -> np.ndarray:
     """Stage 3: prune, refit the support without the penalty, until the support is stable."""
-    unpenalised = stage.problem.weights._replace(gamma=jnp.asarray(0.0))
+    unpenalised = stage.problem.weights._replace(gamma=to_device(0.0))
     gamma = float(stage.problem.weights.gamma)
     alive = scale > 0
     for round_ in range(MAX_PRUNE_ROUNDS):
@@ -338,7 +346,7 @@ def _prune_and_refit(stage, free, scale, options, results) -> np.ndarray:
         problem = stage.problem._replace(
             weights=unpenalised, active=_active(free.shape[0], stage.omega_at[~keep])
         )
-        refit = stage.run(problem, jnp.asarray(free))
+        refit = stage.run(problem, to_device(free))
         if not np.isfinite(refit.cost):
             break
         results.append(refit)
@@ -354,9 +362,9 @@ def _physics_reference(stage: _Stage, free0) -> Reference:
         return Reference(result, np.zeros(stage.omega_at.shape[0]), np.nan)
     others = np.setdiff1d(np.flatnonzero(np.asarray(stage.problem.active) > 0), stage.omega_at)
     residual, columns = jacobian_columns(
-        jnp.asarray(result.free),
+        to_device(result.free),
         stage.problem,
-        jnp.asarray(np.concatenate([stage.omega_at, others])),
+        to_device(np.concatenate([stage.omega_at, others])),
         model=stage.evaluate.model,
         layout=stage.evaluate.layout,
     )
@@ -372,7 +380,7 @@ def _penalised_problem(problem: Problem, omega_flat, scale, n_free, dead) -> Pro
     shape = np.shape(problem.omega_free)
     full = np.ones(int(np.prod(shape)))
     full[omega_flat] = np.where(scale > 0, scale, 1.0)
-    weights = problem.weights._replace(penalty_scale=jnp.asarray(full.reshape(shape)))
+    weights = problem.weights._replace(penalty_scale=to_device(full.reshape(shape)))
     return problem._replace(weights=weights, active=_active(n_free, dead))
 
 
@@ -383,10 +391,8 @@ class _FitCost:
         self.problem, self.model, self.layout, self.n_fit = problem, model, layout, n_fit
 
     def __call__(self, free) -> float:
-        value = fit_cost(
-            jnp.asarray(free), self.problem, model=self.model, layout=self.layout, n_fit=self.n_fit
-        )
-        return float(value)
+        value = fit_cost(free, self.problem, model=self.model, layout=self.layout, n_fit=self.n_fit)
+        return float(value)  # a NumPy ``free`` goes into the jitted cost as it is
 
 
 def fit_sparse(
@@ -439,7 +445,7 @@ def fit_sparse(
         )
     warm = np.any(np.asarray(free0)[omega_at] != 0.0)
     dead = omega_at[scale == 0]
-    start = jnp.asarray(free0 if warm else reference.result.free).at[dead].set(0.0)
+    start = _zeroed(free0 if warm else reference.result.free, dead)
     penalised = _penalised_problem(problem, omega_flat, scale, start.shape[0], dead)
     results = [reference.result] if computed else []
     results.append(run(penalised, start))
