@@ -90,9 +90,11 @@ def as_records(u, z) -> list[tuple[np.ndarray, np.ndarray]]:
     return records
 
 
-def _traceable(name: str, fun, *args):
+def _traceable(name: str, fun, *args, evaluate: bool = False):
+    """``fun``'s output shapes at ``args`` (``jax.eval_shape``) or, with ``evaluate``, its
+    value, computed by one jitted program (traced once, not one program per operation)."""
     try:
-        return jax.eval_shape(fun, *args)
+        return jax.jit(fun)(*args) if evaluate else jax.eval_shape(fun, *args)
     except Exception as error:  # any failure to trace is the user's function, re-raised
         raise TypeError(
             f"{name} cannot be evaluated with JAX ({type(error).__name__}: {error}). "
@@ -119,8 +121,9 @@ def check_physics(physics: PhysicsModel, n_inputs: int, n_outputs: int, u0) -> N
         ("physics.output", physics.output, (n_outputs,)),
     ]
     for name, fun, expected in checks:
-        _check_result(name, _traceable(name, fun, x0, u0, theta), expected, where)
-        value = np.asarray(jax.jit(fun)(x0, u0, theta))  # one program, not one per operation
+        value = _traceable(name, fun, x0, u0, theta, evaluate=True)
+        _check_result(name, value, expected, where)
+        value = np.asarray(value)
         if not np.all(np.isfinite(value)):
             raise ValueError(
                 f"{name} returned non-finite values {value} {where}; "
