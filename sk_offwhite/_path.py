@@ -294,13 +294,8 @@ def penalised_objective(est: GreyBoxSparseRegressor) -> float:
 def _better_start(snapshot: GreyBoxSparseRegressor, u, z, sample_index):
     r"""``(fit, start)``: ``snapshot`` (the path's continuation at its :math:`\gamma`) or the
     same :math:`\gamma` fitted from the physics reference, whichever reaches the lower
-    :func:`penalised_objective` (by more than :data:`RESTART_MARGIN` of it).
-
-    Continuation can carry a support picked up at a larger :math:`\gamma` into a basin
-    the data no longer support; the folds, whose held-out errors chose :math:`\gamma`,
-    each start from the reference. Measured on the noise-free vehicle of Section 5.1
-    (seed 4, fused loops): continuation ends at a wrong 3-term support with fit error
-    3.1e-3, the reference start at Δ's 3 terms with 3.2e-14."""
+    :func:`penalised_objective` (by more than :data:`RESTART_MARGIN` of it); why, in
+    :func:`fit_gamma_path`."""
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
