@@ -218,6 +218,16 @@ def hull_table(runs: list[dict], noise_bounds) -> str:
     return "\n".join(lines)
 
 
+def _populations(runs: list[dict], noise_bound: float):
+    """``(with_delta, alone, certified)`` at ``noise_bound``, over the runs that fitted the
+    physics alone: theta of the fits with delta and of the physics alone (``(n, 4)`` each),
+    and which fits with delta are certified under b sqrt(T)."""
+    rows = [r for r in runs if r["noise_bound"] == noise_bound and "theta_physics_only" in r]
+    with_delta = np.array([r["theta_hat"] for r in rows]).reshape(-1, 4)
+    alone = np.array([r["theta_physics_only"] for r in rows]).reshape(-1, 4)
+    return with_delta, alone, np.array([r[RULES[0]]["certified"] is True for r in rows], bool)
+
+
 def paper_populations_table(runs: list[dict], noise_bounds) -> str:
     """Markdown table of Fig. 2 with the paper's populations: FPS the hull of every estimate
     with and without delta, SFPS that of the fits with delta certified under b sqrt(T);
@@ -229,11 +239,8 @@ def paper_populations_table(runs: list[dict], noise_bounds) -> str:
         f"| paper | PCA | {PAPER['FPS']} | {PAPER['SFPS']} |",
     ]
     for b in noise_bounds:
-        rows = [r for r in runs if r["noise_bound"] == b and "theta_physics_only" in r]
-        with_delta = np.array([r["theta_hat"] for r in rows]).reshape(-1, 4)
-        alone = np.array([r["theta_physics_only"] for r in rows]).reshape(-1, 4)
-        certified = with_delta[[r[RULES[0]]["certified"] is True for r in rows]]
-        everything = np.vstack([with_delta, alone])
+        with_delta, alone, ok = _populations(runs, b)
+        certified, everything = with_delta[ok], np.vstack([with_delta, alone])
         if len(everything) < 2:
             continue
         pca = [principal_components(v, everything) if len(v) else v
@@ -303,20 +310,17 @@ def plot_paper_populations(runs: list[dict], noise_bounds, path: Path) -> None:
 
     fig, axes = plt.subplots(1, len(noise_bounds), figsize=(4 * len(noise_bounds), 4))
     for ax, b in zip(np.atleast_1d(axes), noise_bounds, strict=True):
-        rows = [r for r in runs if r["noise_bound"] == b and "theta_physics_only" in r]
-        if not rows:
+        with_delta, alone, ok = _populations(runs, b)
+        if not len(with_delta):
             continue
-        ok = np.array([r[RULES[0]]["certified"] is True for r in rows], bool)
-        with_delta = np.array([r["theta_hat"] for r in rows]).reshape(-1, 4)
-        alone = np.array([r["theta_physics_only"] for r in rows]).reshape(-1, 4)
-        everything = np.vstack([with_delta, alone])
-        pcs = principal_components(everything)
-        ax.scatter(*pcs[len(rows) :].T, marker="^", c="tab:gray", label="physics alone")
-        ax.scatter(*pcs[: len(rows)][~ok].T, marker="x", c="tab:red", label="delta, not certified")
-        ax.scatter(*pcs[: len(rows)][ok].T, marker="o", c="tab:blue", label="delta, certified")
+        pcs = principal_components(np.vstack([with_delta, alone]))
+        fits = pcs[: len(with_delta)]
+        ax.scatter(*pcs[len(with_delta) :].T, marker="^", c="tab:gray", label="physics alone")
+        ax.scatter(*fits[~ok].T, marker="x", c="tab:red", label="delta, not certified")
+        ax.scatter(*fits[ok].T, marker="o", c="tab:blue", label="delta, certified")
         ax.plot(*hull_polygon(pcs).T, "k--", lw=1.5, label="FPS hull (all)")
         if ok.sum() > 2:
-            ax.plot(*hull_polygon(pcs[: len(rows)][ok]).T, "b-", lw=1.5, label="SFPS hull")
+            ax.plot(*hull_polygon(fits[ok]).T, "b-", lw=1.5, label="SFPS hull")
         ax.set_title(f"b = {b:g}: {ok.sum()}/{len(ok)} certified")
         ax.set_xlabel("pca_1(theta)")
         ax.set_ylabel("pca_2(theta)")
