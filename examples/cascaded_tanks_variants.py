@@ -52,17 +52,14 @@ from sk_offwhite.loop import (
 
 
 def started_from(physics, fitted: GreyBoxSparseRegressor, **values):
-    """``physics`` with the free parameters and initial state of ``fitted`` (those it has),
-    then those of ``values`` it has, as starting values."""
-    starts = {k: v for k, v in (fitted.parameters_ | values).items() if k in physics.parameters}
-    updates = {
+    """``physics`` started from ``fitted`` (:func:`~sk_offwhite.loop.warm_physics`), then
+    from those of ``values`` it has."""
+    starts = {
         k: Parameter(float(v), physics.parameters[k].bounds)
-        for k, v in starts.items()
-        if not physics.parameters[k].fixed
+        for k, v in values.items()
+        if k in physics.parameters
     }
-    model = physics.with_parameters(**updates)
-    model.x0 = np.asarray(fitted.initial_states_[0], float).copy()
-    return model
+    return warm_physics(physics, fitted).with_parameters(**starts)
 
 
 def cv_rmse(physics, u, z, settings: LoopSettings) -> float:
