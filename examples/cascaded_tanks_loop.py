@@ -128,10 +128,10 @@ def main(argv=None):
     ]
     path = write_report(result, rows, records, args.out, title="Cascaded Tanks", notes=notes)
     for row in rows:
-        print(
-            f"{row['model']:24s} {row['record']:10s} {row['protocol']:11s} "
-            f"RMSE {row['rmse']:.4f}  fit {row['fit_percent']:.1f} %"
-        )
+        score = f"RMSE {row['rmse']:.4f}  fit {row['fit_percent']:.1f} %"
+        if row["diverged_at"] is not None:
+            score = f"diverged from sample {row['diverged_at']}"
+        print(f"{row['model']:24s} {row['record']:10s} {row['protocol']:11s} {score}")
     print("effects added:", ", ".join(e.name for e in result.effects) or "none")
     print("cross-validated RMSE:", {k: round(v, 4) for k, v in result.cv_errors.items()})
     print(f"chosen (lowest CV error): {result.chosen}")

@@ -8,6 +8,7 @@ import pytest
 
 from sk_offwhite import (
     DeadZone,
+    DivergenceWarning,
     Friction,
     GreyBoxSparseRegressor,
     InputSaturation,
@@ -15,6 +16,8 @@ from sk_offwhite import (
     OutputOffset,
     OutputSaturation,
     Overflow,
+    Parameter,
+    PhysicsModel,
 )
 from sk_offwhite.datasets import make_leaky_tank
 from sk_offwhite.diagnose import range_violations
@@ -33,6 +36,7 @@ from sk_offwhite.loop import (
 from sk_offwhite.loop._hypotheses import feature_variables
 from sk_offwhite.loop._loop import _set_cv, _swap
 from sk_offwhite.loop._progress import StageClock
+from sk_offwhite.loop._report import _json_rows, _table
 from sk_offwhite.loop._switchboard import effect_sets
 
 
@@ -337,3 +341,35 @@ def test_stepwise_drops_an_effect_that_adds_nothing():
     assert [label for label, _ in rows] == ["offset_x", "leak_x"]
     assert dict(rows)["leak_x"] <= (1 + settings.tolerance) * cv
     assert "offset_x_offset" not in params
+
+
+def _growing_model():
+    """A fitted model of ``x[k+1] = a x[k] + u[k]`` with ``a`` near 2: finite on its 30
+    samples, overflowing after about 1030 steps."""
+
+    def step(x, u, theta):
+        return theta["a"] * x + u
+
+    physics = PhysicsModel(step, [0], {"a": Parameter(1.5)}, 1, 1, x0=[1.0], x0_fixed=True)
+    u = np.zeros((30, 1))
+    z = 2.0 ** np.arange(30.0)[:, None]
+    return GreyBoxSparseRegressor(physics).fit(u, z)
+
+
+def test_a_diverging_simulation_is_scored_and_reported_not_raised():
+    est = _growing_model()
+    models = dict(baseline=est, with_delta=None, final=est, final_with_delta=None)
+    result = SimpleNamespace(**models)
+    short_record = (np.zeros((30, 1)), 2.0 ** np.arange(30.0))
+    records = {"short": short_record, "long": (np.zeros((1100, 1)), np.ones(1100))}
+    with pytest.warns(DivergenceWarning, match="not finite from sample"):
+        rows = score_models(result, records, init_window=10)
+    short = [r for r in rows if r["record"] == "short"]
+    long = [r for r in rows if r["record"] == "long"]
+    assert all(r["diverged_at"] is None and np.isfinite(r["rmse"]) for r in short)
+    assert all(r["rmse"] == np.inf and r["fit_percent"] == -np.inf for r in long)
+    assert all(1000 < r["diverged_at"] < 1100 for r in long)
+    table = "\n".join(_table(rows))
+    assert f"| long | original | diverged from sample {long[0]['diverged_at']} |" in table
+    assert all(r["rmse"] is None for r in _json_rows(long))
+    assert all(isinstance(r["rmse"], float) for r in _json_rows(short))

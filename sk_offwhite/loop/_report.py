@@ -22,11 +22,24 @@ __all__ = ["write_report"]
 def _table(rows: list[dict]) -> list[str]:
     lines = ["| model | record | protocol | RMSE | fit % |", "|---|---|---|---|---|"]
     lines += [
-        f"| {r['model']} | {r['record']} | {r['protocol']} | {r['rmse']:.4f} | "
-        f"{r['fit_percent']:.1f} |"
-        for r in rows
+        f"| {r['model']} | {r['record']} | {r['protocol']} | {_score_cells(r)} |" for r in rows
     ]
     return lines
+
+
+def _score_cells(row: dict) -> str:
+    """RMSE and fit of a row, or where its simulation diverged."""
+    if row.get("diverged_at") is not None:
+        return f"diverged from sample {row['diverged_at']} | — "
+    return f"{row['rmse']:.4f} | {row['fit_percent']:.1f}"
+
+
+def _json_rows(rows: list[dict]) -> list[dict]:
+    """``rows`` with the scores of diverged simulations as ``null`` (strict JSON)."""
+    return [
+        {k: None if isinstance(v, float) and not np.isfinite(v) else v for k, v in r.items()}
+        for r in rows
+    ]
 
 
 def _figure_outputs(result, u, z, path: Path, title: str) -> None:
@@ -146,7 +159,10 @@ def _set_score(est, u, z, init_window: int = 50) -> str:
     """RMSE of a set's fit on a record (``init_window`` protocol), or a dash."""
     if est is None:
         return "—"
-    return f"{_protocol_metrics(est, u, z, 'init_window', init_window)['overall']['rmse']:.4f}"
+    overall = _protocol_metrics(est, u, z, "init_window", init_window)["overall"]
+    if overall["diverged_at"] is not None:
+        return f"diverged from sample {overall['diverged_at']}"
+    return f"{overall['rmse']:.4f}"
 
 
 def _choice_lines(result) -> list[str]:
@@ -245,5 +261,6 @@ def write_report(result, rows, records: dict, directory, *, title: str, notes=()
     lines += ["## Time per stage", ""] + _timing_lines(result)
     lines += [f"![outputs {n}](outputs_{n}.png)" for n in records] + [""]
     (out / "report.md").write_text("\n".join(lines), encoding="utf-8")
-    (out / "results.json").write_text(json.dumps({"rows": rows}, indent=2), encoding="utf-8")
+    table = json.dumps({"rows": _json_rows(rows)}, indent=2, allow_nan=False)
+    (out / "results.json").write_text(table, encoding="utf-8")
     return out / "report.md"

@@ -9,6 +9,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from .._path import held_out_errors
 from .._validation import check_record
 from ..diagnose import simulation_metrics
@@ -41,17 +43,31 @@ def held_out_rmse(init_window: int):
 
 
 def _protocol_metrics(est, u, z, protocol: str, init_window: int) -> dict:
+    """:func:`~sk_offwhite.diagnose.simulation_metrics` of one protocol, or, when the
+    simulation diverges, ``overall`` with ``rmse`` ``inf``, ``fit_percent`` ``-inf`` and
+    ``diverged_at`` (the first non-finite sample; the simulation has warned)."""
     u, z = check_record(u, z)
-    if protocol == "original":
-        return simulation_metrics(z, est.simulate(u).outputs)
-    z_sim = est.simulate(u, z_init=z[:init_window]).outputs
-    return simulation_metrics(z, z_sim, skip=init_window)
+    skip = 0 if protocol == "original" else init_window
+    z_init = None if protocol == "original" else z[:init_window]
+    z_sim = np.asarray(est.simulate(u, z_init=z_init).outputs)
+    finite = np.all(np.isfinite(z_sim), axis=1)
+    if np.all(finite):
+        metrics = simulation_metrics(z, z_sim, skip=skip)
+        metrics["overall"]["diverged_at"] = None
+        return metrics
+    overall = dict(rmse=np.inf, fit_percent=-np.inf, diverged_at=int(np.argmin(finite)))
+    return {"per_output": {}, "overall": overall}
 
 
 def score_models(result, records: dict, init_window: int = 50) -> list[dict]:
-    """Rows ``{model, record, protocol, rmse, fit_percent}`` for every fitted model and record.
+    """Rows ``{model, record, protocol, rmse, fit_percent, diverged_at}`` for every fitted
+    model and record.
 
-    ``records`` maps a record name (``"estimation"``, ``"validation"``) to ``(u, z)``.
+    ``records`` maps a record name (``"estimation"``, ``"validation"``) to ``(u, z)``. A
+    model whose simulation of a record diverges is scored, not dropped: ``rmse`` ``inf``,
+    ``fit_percent`` ``-inf`` and ``diverged_at`` the first sample that is not finite
+    (``None`` for a finite simulation), with a
+    :class:`~sk_offwhite.DivergenceWarning` from the simulation.
     """
     rows = []
     for key, label in MODEL_LABELS.items():
@@ -68,6 +84,7 @@ def score_models(result, records: dict, init_window: int = 50) -> list[dict]:
                         protocol=protocol,
                         rmse=overall["rmse"],
                         fit_percent=overall["fit_percent"],
+                        diverged_at=overall["diverged_at"],
                     )
                 )
     return rows
