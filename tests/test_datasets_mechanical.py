@@ -1,4 +1,5 @@
-"""Tests of the mechanical synthetic generators (drive, Duffing, pendulum, dead-zone motor)."""
+"""Tests of the mechanical and thermal synthetic generators (drive, Duffing, pendulum,
+dead-zone motor, heated block)."""
 
 import pickle
 
@@ -12,6 +13,7 @@ from sk_offwhite.datasets import (
     make_coulomb_drive,
     make_dead_zone_motor,
     make_duffing_oscillator,
+    make_heated_block,
     make_pendulum_drag,
 )
 
@@ -20,16 +22,21 @@ GENERATORS = {
     "duffing": make_duffing_oscillator,
     "pendulum": make_pendulum_drag,
     "motor": make_dead_zone_motor,
+    "heater": make_heated_block,
 }
 NAMES = list(GENERATORS)
 N = 500
-SHAPES = {"drive": (2, 1), "duffing": (2, 1), "pendulum": (2, 1), "motor": (1, 1)}
-KINDS = {"position", "velocity", "angle", "rate", "force", "voltage", "torque", "generic"}
+SHAPES = {"drive": (2, 1), "duffing": (2, 1), "pendulum": (2, 1), "motor": (1, 1), "heater": (1, 1)}
+KINDS = {
+    "position", "velocity", "angle", "rate", "force", "voltage", "torque", "temperature",
+    "generic",
+}  # fmt: skip
 BOUNDS = {  # largest |x| per state: well inside Euler's stable region, no rotations
     "drive": (0.1, 5.0),
     "duffing": (np.sqrt(2.0), 5.0),
     "pendulum": (np.pi, 10.0),
     "motor": (8.0,),
+    "heater": (340.0,),  # kelvin: absolute temperatures
 }
 KEYS = {
     "u", "z", "u_val", "z_val", "x", "x_val", "physics", "true_parameters", "true_x0",
@@ -66,6 +73,8 @@ def _rate(name, rates, x, u):
         return -rates["cubic"] * x[..., 0] ** 3
     if name == "pendulum":
         return -rates["quadratic_drag"] * x[..., 1] * np.abs(x[..., 1])
+    if name == "heater":
+        return -np.maximum(u[..., 0] - rates["limit"], 0.0) / rates["capacity"]
     return -rates["gain"] * np.clip(u[..., 0], -rates["dead_zone"], rates["dead_zone"])
 
 
@@ -166,9 +175,12 @@ def test_rates_of_the_dead_zone_motor(generated):
 @pytest.mark.parametrize("name", NAMES)
 def test_physics_guess_differs_from_the_truth(generated, name):
     data = generated[name][0]
-    guess = data.physics.parameter_values()
-    truth = np.array([data.true_parameters[p] for p in data.physics.parameter_names])
+    names = [p for p in data.physics.parameter_names if p != "ambient"]
+    guess = np.array([data.physics.parameters[p].value for p in names])
+    truth = np.array([data.true_parameters[p] for p in names])
     assert np.all((np.abs(guess - truth) / truth > 0.15) & (np.abs(guess - truth) / truth < 0.35))
+    if name == "heater":  # an absolute temperature: a few kelvin off, not a fraction of it
+        assert 2.0 < abs(data.physics.parameters["ambient"].value - 295.0) < 10.0
 
 
 @pytest.mark.parametrize("name", NAMES)
@@ -187,7 +199,7 @@ def test_suggested_library_represents_the_hidden_effect(generated, name):
     target = data.hidden_effect["function"](data.x[:-1], data.u[:-1])
     coef, *_ = np.linalg.lstsq(theta, target, rcond=None)
     explained = 1 - np.sum((theta @ coef - target) ** 2) / np.sum((target - target.mean()) ** 2)
-    assert explained > (0.8 if name == "motor" else 1 - 1e-9)
+    assert explained > (0.8 if name in ("motor", "heater") else 1 - 1e-9)
     customs = getattr(data.suggested_library, "libraries", [])
     for custom in (lib for lib in customs if isinstance(lib, ps.CustomLibrary)):
         for function in custom.functions:

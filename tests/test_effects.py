@@ -13,6 +13,7 @@ from sk_offwhite._effects import (
     AdditiveEffect,
     Bias,
     Friction,
+    InputSaturation,
     Leak,
     OutputSaturation,
     Overflow,
@@ -84,6 +85,36 @@ def test_output_saturation_leak_and_friction_act_as_described():
     plain = tanks_physics().step(x, u, theta)
     np.testing.assert_allclose(physics.step(x, u, theta) - plain, [-0.4, -0.2], atol=1e-6)
     assert jnp.all(jnp.isfinite(jax.grad(lambda a: physics.step(a, u, theta).sum())(x)))
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e-3, 1e4])
+def test_a_hard_input_limit_passes_the_input_below_it_and_clips_above(scale):
+    """The clip shape: unchanged up to half the level (to 1e-9), within 1e-3 at 92 % of
+    it, at the level beyond it, odd, and the same curve in any units of the input
+    (sharpness relative to the level)."""
+    effect = InputSaturation(0, 60.0 * scale, shape="clip")
+    values = np.array([-200.0, -55.0, -30.0, 0.0, 20.0, 55.0, 66.0, 200.0]) * scale
+    with jax.enable_x64(True):
+        theta = {"actuator_level": jnp.asarray(60.0 * scale)}
+        out = np.array([effect.apply_input(None, jnp.array([v]), theta)[0] for v in values])
+    inside = np.abs(values) <= 30.0 * scale
+    np.testing.assert_allclose(out[inside], values[inside], rtol=1e-9)
+    np.testing.assert_allclose(out[[1, 5]], values[[1, 5]], rtol=1e-3)  # rounded corner
+    np.testing.assert_allclose(out[[0, -1]], [-60.0 * scale, 60.0 * scale], rtol=1e-9)
+    np.testing.assert_allclose(out[-2], 60.0 * scale, rtol=2e-3)  # 10 % beyond the level
+    soft = InputSaturation(0, 60.0 * scale)  # tanh: already 5 % low at a third of the level
+    with jax.enable_x64(True):
+        low = float(soft.apply_input(None, jnp.array([20.0 * scale]), theta)[0])
+    assert low < 0.97 * 20.0 * scale
+
+
+def test_the_two_saturation_shapes_are_one_mechanism_and_differ_as_effects():
+    soft, hard = InputSaturation(0, 1.0), InputSaturation(0, 1.0, shape="clip")
+    assert soft.mechanism == hard.mechanism != InputSaturation(1, 1.0).mechanism
+    assert soft != hard and pickle.loads(pickle.dumps(hard)) == hard
+    assert "clipped" in hard.describe(["x"], ["z"]) and "tanh" in soft.describe(["x"], ["z"])
+    with pytest.raises(ValueError, match="shape must be one of"):
+        InputSaturation(0, 1.0, shape="hard")
 
 
 def test_the_missing_overflow_added_as_an_effect_cuts_the_validation_error():

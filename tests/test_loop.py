@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from sk_offwhite import (
+    Bias,
     DeadZone,
     DivergenceWarning,
     Friction,
@@ -25,6 +26,7 @@ from sk_offwhite.loop import (
     Hypothesis,
     LoopSettings,
     Term,
+    _loop,
     close_the_loop,
     held_out_rmse,
     held_out_splits,
@@ -34,7 +36,7 @@ from sk_offwhite.loop import (
     write_report,
 )
 from sk_offwhite.loop._hypotheses import feature_variables
-from sk_offwhite.loop._loop import _set_cv, _swap
+from sk_offwhite.loop._loop import _best_starts, _set_cv, _swap
 from sk_offwhite.loop._progress import StageClock
 from sk_offwhite.loop._report import _json_rows, _table
 from sk_offwhite.loop._switchboard import effect_sets
@@ -373,3 +375,29 @@ def test_a_diverging_simulation_is_scored_and_reported_not_raised():
     assert f"| long | original | diverged from sample {long[0]['diverged_at']} |" in table
     assert all(r["rmse"] is None for r in _json_rows(long))
     assert all(isinstance(r["rmse"], float) for r in _json_rows(short))
+
+
+def test_a_set_reached_from_two_starts_keeps_the_better_fit(monkeypatch):
+    """Forward selection and the nested sets can reach one effect set from different
+    starts: the set is fitted from each and keeps the lowest estimation RMSE; a set
+    reached from one start (or the same start twice) is not fitted again."""
+    leak, bias = Leak(0, rate=0.1, name="leak_x"), Bias(0, name="bias_x")
+    fits = {0.1: (0.5, {"leak_x_rate": 0.1}), 0.3: (0.2, {"leak_x_rate": 0.05})}
+    asked = []
+
+    def best_of(board, sets, u, z, settings, failures):
+        asked.extend(sets)
+        return [min((fits[s["leak_x_rate"]] for s in starts), key=lambda f: f[0])
+                for _, starts in sets]  # fmt: skip
+
+    monkeypatch.setattr(_loop, "_best_of", best_of)
+    steps = [
+        ((leak,), {"leak_x_rate": 0.1}, 0.5),
+        ((bias, leak), {"leak_x_rate": 0.2, "bias_x_value": 1.0}, 0.4),
+        ((leak,), {"leak_x_rate": 0.3}, None),
+        ((leak, bias), {"leak_x_rate": 0.2, "bias_x_value": 1.0}, None),
+    ]
+    merged = _best_starts(None, steps, None, None, None, [])
+    assert [len(starts) for _, starts in asked] == [2]  # only the set with two starts
+    assert merged[0] == ((leak,), {"leak_x_rate": 0.05}, 0.2)  # the better start's fit
+    assert merged[1:] == steps[1:]

@@ -27,6 +27,7 @@ from sk_offwhite.datasets._synthetic import (
     make_vehicle_lateral,
     vehicle_dictionary_library,
 )
+from sk_offwhite.datasets._thermal import make_heated_block
 from sk_offwhite.datasets._vehicle import vehicle_physics_known_registers
 
 __all__ = [
@@ -38,6 +39,7 @@ __all__ = [
     "make_dead_zone_motor",
     "make_duffing_oscillator",
     "make_friction_oscillator",
+    "make_heated_block",
     "make_leaky_tank",
     "make_nonlinear_sensor_tank",
     "make_pendulum_drag",

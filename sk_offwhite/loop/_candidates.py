@@ -174,7 +174,9 @@ def _constants(hypothesis, kinds: Kinds) -> list[Candidate]:
 
 def _actuators(hypothesis, u, input_names, kinds: Kinds) -> list[Candidate]:
     """A correction in an input that is an effort or a flow: perhaps the actuator
-    saturates, or has a dead zone."""
+    saturates, softly (``tanh``) or at a hard limit (``clip``), or has a dead zone. Both
+    saturations start at the 90 % quantile of :math:`|u_j|`, so that the data reach
+    beyond the level from the start."""
     out = []
     for j, n in enumerate(input_names):
         if n not in hypothesis.variables or np.ptp(u[:, j]) == 0:
@@ -182,10 +184,15 @@ def _actuators(hypothesis, u, input_names, kinds: Kinds) -> list[Candidate]:
         if kinds.inputs[j] not in ACTUATOR_KINDS:
             continue
         rms = float(np.sqrt(np.mean(u[:, j] ** 2)))
+        level = float(np.quantile(np.abs(u[:, j]), 0.9))
         out += [
             Candidate(
-                InputSaturation(j, float(np.quantile(np.abs(u[:, j]), 0.9)), name=f"actuator_{n}"),
+                InputSaturation(j, level, name=f"actuator_{n}"),
                 f"{hypothesis.sentence} The actuator of {n} may saturate.",
+            ),
+            Candidate(
+                InputSaturation(j, level, shape="clip", name=f"actuator_limit_{n}"),
+                f"{hypothesis.sentence} The actuator of {n} may reach a hard limit.",
             ),
             Candidate(
                 DeadZone(j, 0.25 * rms, name=f"dead_zone_{n}"),
