@@ -40,6 +40,7 @@ from sk_offwhite.datasets import (
     make_dead_zone_motor,
     make_duffing_oscillator,
     make_friction_oscillator,
+    make_heated_block,
     make_leaky_tank,
     make_nonlinear_sensor_tank,
     make_pendulum_drag,
@@ -74,6 +75,7 @@ SYSTEMS = {
     "actuator": (make_saturating_actuator, 500, InputSaturation, None),
     "tanks": (_tanks, 500, Overflow, None),
     "sensor": (make_nonlinear_sensor_tank, 400, SensorCalibration, None),
+    "heater": (make_heated_block, 1000, InputSaturation, ("actuator_limit_P_level", "limit")),
 }
 
 

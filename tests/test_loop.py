@@ -23,6 +23,7 @@ from sk_offwhite import (
 from sk_offwhite.datasets import make_leaky_tank
 from sk_offwhite.diagnose import range_violations
 from sk_offwhite.loop import (
+    Candidate,
     Hypothesis,
     LoopSettings,
     Term,
@@ -36,7 +37,7 @@ from sk_offwhite.loop import (
     write_report,
 )
 from sk_offwhite.loop._hypotheses import feature_variables
-from sk_offwhite.loop._loop import _best_starts, _set_cv, _swap
+from sk_offwhite.loop._loop import _best_starts, _capped, _set_cv, _swap
 from sk_offwhite.loop._progress import StageClock
 from sk_offwhite.loop._report import _json_rows, _table
 from sk_offwhite.loop._switchboard import effect_sets
@@ -401,3 +402,22 @@ def test_a_set_reached_from_two_starts_keeps_the_better_fit(monkeypatch):
     assert [len(starts) for _, starts in asked] == [2]  # only the set with two starts
     assert merged[0] == ((leak,), {"leak_x_rate": 0.05}, 0.2)  # the better start's fit
     assert merged[1:] == steps[1:]
+
+
+def test_the_candidate_cap_counts_mechanisms_with_all_their_variants():
+    """``max_candidates`` caps mechanisms: a saturation's two shapes or an overflow's two
+    destinations take one place, so adding a variant pushes no other effect out."""
+    effects = [
+        Overflow(1, 9.0, 0, name="overflow_x2_to_x1"),
+        InputSaturation(0, 4.0, name="actuator_u"),
+        InputSaturation(0, 4.0, shape="clip", name="actuator_limit_u"),
+        Leak(1, name="leak_x2"),
+        Overflow(1, 9.0, name="overflow_x2"),  # a variant proposed later
+        Overflow(0, 12.0, 1, name="overflow_x1_to_x2"),
+    ]
+    candidates = [Candidate(effect, "why") for effect in effects]
+    names = [c.effect.name for c in _capped(candidates, 3)]
+    assert names == ["overflow_x2_to_x1", "actuator_u", "actuator_limit_u", "leak_x2",
+                     "overflow_x2"]  # fmt: skip
+    assert [c.effect.name for c in _capped(candidates, 1)] == ["overflow_x2_to_x1", "overflow_x2"]
+    assert _capped(candidates, None) == candidates

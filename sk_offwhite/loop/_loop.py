@@ -85,8 +85,9 @@ class LoopSettings:
     is simulated whole, which is what the held-out blocks are scored on). ``min_gain`` is
     the relative reduction of the cross-validated RMSE an effect set must bring;
     ``tolerance`` the relative slack within which a smaller nested set is preferred.
-    ``max_candidates`` caps how many proposed effects are fitted, in the order they are
-    proposed (strongest hypothesis first); ``None`` fits them all. Each candidate costs a
+    ``max_candidates`` caps how many proposed mechanisms are fitted, in the order they are
+    proposed (strongest hypothesis first), each with all its variants (an overflow's
+    destinations, a saturation's shapes); ``None`` fits them all. Each candidate costs a
     fit and a compilation, so a cap is the way to make a quick run quicker. ``beam`` is
     how many of the best single candidates forward selection combines; ``min_share`` the
     fraction of the strongest term's gain a term needs to be evidence; ``n_promoted`` how
@@ -605,6 +606,23 @@ def _nested(ranked, base_rmse, settings):
     ]
 
 
+def _capped(candidates: list, limit: int | None) -> list:
+    """The candidates of the first ``limit`` mechanisms (:attr:`~sk_offwhite.Effect.mechanism`)
+    in the order proposed, every variant of those mechanisms included: a cap counts what
+    is tried, not how many shapes of it are (a saturation's two, an overflow's
+    destinations), so proposing one more variant does not push another effect out."""
+    if limit is None:
+        return list(candidates)
+    kept, mechanisms = [], []
+    for candidate in candidates:
+        mechanism = candidate.effect.mechanism
+        if mechanism not in mechanisms and len(mechanisms) < limit:
+            mechanisms.append(mechanism)
+        if mechanism in mechanisms:
+            kept.append(candidate)
+    return kept
+
+
 def _best_starts(board, steps, u, z, settings, failures) -> list:
     """``steps`` with each effect set that more than one step reaches from different
     starts (forward selection and the nested sets) fitted from all of them, the step
@@ -660,7 +678,7 @@ def _select_effects(
     failures = [] if failures is None else failures
     if declared_cv is None:
         declared_cv = _cv_rmse(_estimator(physics, settings, cv=True), u, z, settings)
-    candidates = candidates[: settings.max_candidates]
+    candidates = _capped(candidates, settings.max_candidates)
     shared = settings.share_programs
     alone = effect_sets(physics, [c.effect for c in candidates], shared)
     ranked = _released(settings, _rank_alone(alone, candidates, u, z, settings, failures))
