@@ -102,7 +102,7 @@ def test_a_hard_input_limit_passes_the_input_below_it_and_clips_above(scale):
     np.testing.assert_allclose(out[[1, 5]], values[[1, 5]], rtol=1e-3)  # rounded corner
     np.testing.assert_allclose(out[[0, -1]], [-60.0 * scale, 60.0 * scale], rtol=1e-9)
     np.testing.assert_allclose(out[-2], 60.0 * scale, rtol=2e-3)  # 10 % beyond the level
-    soft = InputSaturation(0, 60.0 * scale)  # tanh: already 5 % low at a third of the level
+    soft = InputSaturation(0, 60.0 * scale)  # tanh: 3.6 % low at a third of the level
     with jax.enable_x64(True):
         low = float(soft.apply_input(None, jnp.array([20.0 * scale]), theta)[0])
     assert low < 0.97 * 20.0 * scale
