@@ -13,7 +13,7 @@ import numpy as np
 import pysindy as ps
 from sklearn.utils import Bunch, check_random_state
 
-from sk_offwhite._physics import Parameter, PhysicsModel
+from sk_offwhite._physics import PhysicsModel
 from sk_offwhite.datasets._common import (
     _check_n_samples,
     _multisine,
@@ -21,7 +21,7 @@ from sk_offwhite.datasets._common import (
     _simple_dataset,
     _SimpleSystem,
 )
-from sk_offwhite.datasets._synthetic import POSITIVE
+from sk_offwhite.datasets._synthetic import _first_order_physics
 
 __all__ = ["make_heated_block"]
 
@@ -42,24 +42,8 @@ def _heater_effect(x, u, limit, capacity, dt):
 
 
 def _heated_block_physics(values: dict, x0) -> PhysicsModel:
-    return PhysicsModel.from_ode(
-        heated_block_rhs,
-        HEATER_DT,
-        output=0,
-        parameters={
-            "capacity": Parameter(values["capacity"], POSITIVE),
-            "conductance": Parameter(values["conductance"], POSITIVE),
-            "ambient": Parameter(values["ambient"]),
-        },
-        n_states=1,
-        n_inputs=1,
-        method="euler",
-        x0=x0,
-        state_names=("T",),
-        input_names=("P",),
-        output_names=("T",),
-        state_kinds=("temperature",),
-        input_kinds=("generic",),
+    return _first_order_physics(
+        heated_block_rhs, values, x0, HEATER_DT, ("T", "P"), ("temperature", "generic")
     )
 
 
