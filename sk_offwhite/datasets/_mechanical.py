@@ -54,7 +54,9 @@ __all__ = [
 
 @dataclass(frozen=True)
 class _Generator:
-    """A :class:`_SimpleSystem` with its multisine input, default noise, rates and kinds."""
+    """A :class:`_SimpleSystem` with its multisine input, default noise, rates and kinds;
+    the input is ``input_mean + input_std`` times a unit multisine, floored at
+    ``input_floor`` (a heater's power cannot go below zero)."""
 
     system: _SimpleSystem
     input_std: float
@@ -62,14 +64,21 @@ class _Generator:
     noise_std: float
     rates: dict
     kinds: dict
+    input_mean: float = 0.0
+    input_floor: float = -np.inf
 
 
 def _generate(spec: _Generator, n_samples, noise_std, random_state, process_noise_std) -> Bunch:
-    """Validate the arguments, draw the two zero-mean multisine inputs and simulate."""
+    """Validate the arguments, draw the two multisine inputs and simulate."""
     n = _check_n_samples(n_samples)
     stds = _noise_stds(spec.noise_std if noise_std is None else noise_std, process_noise_std)
     rng = check_random_state(random_state)
-    inputs = [spec.input_std * _multisine(rng, n, spec.band)[:, None] for _ in range(2)]
+    inputs = [
+        np.maximum(
+            spec.input_mean + spec.input_std * _multisine(rng, n, spec.band), spec.input_floor
+        )[:, None]
+        for _ in range(2)
+    ]
     data = _simple_dataset(spec.system, rng, n, inputs, stds)
     kinds = {key: tuple(value) for key, value in spec.kinds.items()}
     data.hidden_effect["rates"] = dict(spec.rates)

@@ -3,7 +3,7 @@
 Same conventions as :mod:`sk_offwhite.datasets._mechanical`: one explicit-Euler step of the
 declared physics per sample plus an additive hidden effect on the temperature equation, in
 SI units (kelvin, watts, joules per kelvin, seconds). Temperatures are absolute, so the
-data sit far from zero (295–330 K): what the package derives from the data's scale is
+data sit far from zero (305–317 K): what the package derives from the data's scale is
 tested on an offset record.
 """
 
@@ -11,16 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 import pysindy as ps
-from sklearn.utils import Bunch, check_random_state
+from sklearn.utils import Bunch
 
 from sk_offwhite._physics import PhysicsModel
-from sk_offwhite.datasets._common import (
-    _check_n_samples,
-    _multisine,
-    _noise_stds,
-    _simple_dataset,
-    _SimpleSystem,
-)
+from sk_offwhite.datasets._common import _SimpleSystem
+from sk_offwhite.datasets._mechanical import _generate, _Generator
 from sk_offwhite.datasets._synthetic import _first_order_physics
 
 __all__ = ["make_heated_block"]
@@ -51,22 +46,32 @@ def _thermal_library():
     return ps.PolynomialLibrary(degree=2)
 
 
-_HEATED_BLOCK = _SimpleSystem(
-    physics=_heated_block_physics,
-    theta=HEATER_THETA,
-    guess={"capacity": 600.0, "conductance": 2.0, "ambient": 290.0},
-    x0=(HEATER_THETA["ambient"] + HEATER_MEAN / HEATER_THETA["conductance"],),
-    contribution=_heater_effect,
-    params={"limit": HEATER_LIMIT, "capacity": HEATER_THETA["capacity"], "dt": HEATER_DT},
-    equation=0,
-    variables=("P",),
-    effect_description="The heater delivers at most 60 W: min(P, 60) instead of the commanded P.",
-    library=_thermal_library,
-    process_target="temperature equation",
-    descr="Heated block C T' = P - G (T - T_a) [SI units: K, W, J/K, s], C=800 J/K, "
-    "G=2.5 W/K, T_a=295 K, Euler dt=2 s, temperature measured; the heater delivers at most "
-    "60 W, which the physics does not know.\n",
-    dt=HEATER_DT,
+_HEATED_BLOCK = _Generator(
+    system=_SimpleSystem(
+        physics=_heated_block_physics,
+        theta=HEATER_THETA,
+        guess={"capacity": 600.0, "conductance": 2.0, "ambient": 290.0},
+        x0=(HEATER_THETA["ambient"] + HEATER_MEAN / HEATER_THETA["conductance"],),
+        contribution=_heater_effect,
+        params={"limit": HEATER_LIMIT, "capacity": HEATER_THETA["capacity"], "dt": HEATER_DT},
+        equation=0,
+        variables=("P",),
+        effect_description="The heater delivers at most 60 W: min(P, 60) instead of the "
+        "commanded P.",
+        library=_thermal_library,
+        process_target="temperature equation",
+        descr="Heated block C T' = P - G (T - T_a) [SI units: K, W, J/K, s], C=800 J/K, "
+        "G=2.5 W/K, T_a=295 K, Euler dt=2 s, temperature measured; the heater delivers at most "
+        "60 W, which the physics does not know.\n",
+        dt=HEATER_DT,
+    ),
+    input_std=HEATER_STD,
+    band=0.01,
+    noise_std=0.02,
+    rates={"limit": HEATER_LIMIT, "capacity": HEATER_THETA["capacity"]},
+    kinds={"states": ("temperature",), "inputs": ("generic",)},
+    input_mean=HEATER_MEAN,
+    input_floor=0.0,
 )
 
 
@@ -117,16 +122,4 @@ def make_heated_block(
         ``u, z, u_val, z_val, x, x_val, physics, true_parameters, true_x0, true_x0_val,
         hidden_effect, suggested_library, noise, sampling_time, kinds, DESCR``.
     """
-    n = _check_n_samples(n_samples)
-    stds = _noise_stds(0.02 if noise_std is None else noise_std, process_noise_std)
-    rng = check_random_state(random_state)
-    inputs = [
-        np.maximum(HEATER_MEAN + HEATER_STD * _multisine(rng, n, 0.01), 0.0)[:, None]
-        for _ in range(2)
-    ]
-    data = _simple_dataset(_HEATED_BLOCK, rng, n, inputs, stds)
-    kinds = {"states": ("temperature",), "inputs": ("generic",)}
-    data.hidden_effect["rates"] = {"limit": HEATER_LIMIT, "capacity": HEATER_THETA["capacity"]}
-    data.hidden_effect["kinds"] = kinds
-    data.kinds = dict(kinds)
-    return data
+    return _generate(_HEATED_BLOCK, n_samples, noise_std, random_state, process_noise_std)
