@@ -13,6 +13,7 @@ import pytest
 
 from sk_offwhite import InputSaturation
 from sk_offwhite.datasets import make_heated_block
+from sk_offwhite.datasets._thermal import _heated_block_physics
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 
 SETTINGS = LoopSettings(n_folds=2, max_iter=100, fit_delta=False, max_candidates=6)
@@ -55,3 +56,28 @@ def test_validation_error_falls_to_the_sensor_noise(run):
     noise = data.noise["output"]["std"]
     assert rmse["augmented physics"] < 1.2 * noise < 0.1 * rmse["declared physics"]
     assert result.chosen == "final"
+
+
+@pytest.mark.parametrize(
+    "unit, offset, power",
+    [("celsius", -273.15, 1.0), ("kilowatt", 0.0, 1e-3)],
+)
+def test_the_same_model_in_other_units(run, unit, offset, power):
+    """Degrees Celsius (an offset of the output) or kilowatts (a scale of the input and of
+    two parameters): the loop adds the same effect with the same values in the new units
+    and the same validation error."""
+    data, kelvin = run
+    guess = {"capacity": 600.0 * power, "conductance": 2.0 * power, "ambient": 290.0 + offset}
+    physics = _heated_block_physics(guess, (313.0 + offset,))
+    u, z = data.u * power, data.z + offset
+    result = close_the_loop(physics, data.suggested_library, u, z, settings=SETTINGS)
+    assert [e.name for e in result.effects] == [e.name for e in kelvin.effects]
+    expected = dict(kelvin.final.parameters_)
+    expected["ambient"] += offset
+    for name in ("capacity", "conductance", "actuator_limit_P_level"):
+        expected[name] *= power
+    for name, value in result.final.parameters_.items():
+        np.testing.assert_allclose(value, expected[name], rtol=1e-4, err_msg=name)
+    rows = score_models(result, {"validation": (data.u_val * power, data.z_val + offset)})
+    same = score_models(kelvin, {"validation": (data.u_val, data.z_val)})
+    np.testing.assert_allclose([r["rmse"] for r in rows], [r["rmse"] for r in same], rtol=1e-4)
