@@ -30,7 +30,6 @@ from dataclasses import replace
 
 import numpy as np
 import pysindy as ps
-from sklearn.base import clone
 
 from sk_offwhite import (
     GreyBoxSparseRegressor,
@@ -44,9 +43,8 @@ from sk_offwhite.datasets import cascaded_tanks_physics, load_cascaded_tanks
 from sk_offwhite.loop import (
     LoopSettings,
     close_the_loop,
+    cross_validated_rmse,
     fit_continued,
-    held_out_rmse,
-    held_out_splits,
     warm_physics,
 )
 
@@ -62,21 +60,14 @@ def started_from(physics, fitted: GreyBoxSparseRegressor, **values):
     return warm_physics(physics, fitted).with_parameters(**starts)
 
 
-def cv_rmse(physics, u, z, settings: LoopSettings) -> float:
-    """The loop's cross-validated RMSE of ``physics`` (held-out blocks, free-run scores)."""
-    template = GreyBoxSparseRegressor(
+def estimator(physics, settings: LoopSettings) -> GreyBoxSparseRegressor:
+    """An estimator of ``physics`` with the loop's fit settings."""
+    return GreyBoxSparseRegressor(
         physics,
-        horizon=settings.cv_horizon,
         max_iter=settings.max_iter,
         init_window=settings.init_window,
         lm_scaling=settings.lm_scaling,
     )
-    scorer = held_out_rmse(settings.init_window)
-    scores = [
-        -scorer(clone(template).fit(u[train], z[train], sample_index=train), u[test], z[test])
-        for train, test in held_out_splits(settings, len(u))
-    ]
-    return float(np.mean(scores))
 
 
 def rmse(est, u, z, init_window: int = 0) -> float:
@@ -100,7 +91,7 @@ def held_out_scores(physics, u, z, settings: LoopSettings, folds, tail: bool) ->
     and, with ``tail``, on the estimation record's last quarter (key ``"tail"``)."""
     rules = [dict(n_folds=k) for k in folds] + ([dict(selection="tail")] if tail else [])
     return {
-        rule.get("n_folds", "tail"): cv_rmse(physics, u, z, replace(settings, **rule))
+        rule.get("n_folds", "tail"): cross_validated_rmse(physics, u, z, replace(settings, **rule))
         for rule in rules
     }
 
@@ -109,10 +100,7 @@ def score(label, physics, fitted, data, settings, folds=(3,), tail=False, delay=
     """Refit ``physics`` from ``fitted`` and score it (held-out scores, estimation,
     validation)."""
     u_est, u_val = delayed(data.u_est, delay), delayed(data.u_val, delay)
-    template = GreyBoxSparseRegressor(
-        started_from(physics, fitted), max_iter=settings.max_iter,
-        init_window=settings.init_window, lm_scaling=settings.lm_scaling,
-    )  # fmt: skip
+    template = estimator(started_from(physics, fitted), settings)
     est = fit_continued(template, u_est, data.z_est, settings.horizon)
     scores = held_out_scores(warm_physics(physics, est), u_est, data.z_est, settings, folds, tail)
     row = dict(variant=label, held_out=scores)
@@ -150,10 +138,7 @@ def multiple_starts(result, declared, data, settings) -> list[tuple]:
     for level, cap, fraction in grid:
         starts = dict(overflow_x1_to_x2_level=level, overflow_x2_level=cap,
                       overflow_x1_to_x2_fraction=fraction)  # fmt: skip
-        template = GreyBoxSparseRegressor(
-            started_from(physics, result.final, **starts), max_iter=settings.max_iter,
-            init_window=settings.init_window, lm_scaling=settings.lm_scaling,
-        )  # fmt: skip
+        template = estimator(started_from(physics, result.final, **starts), settings)
         est = fit_continued(template, data.u_est, data.z_est, settings.horizon)
         value = rmse(est, data.u_est, data.z_est)
         rows.append((starts, value if np.isfinite(value) else np.inf))

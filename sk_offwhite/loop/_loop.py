@@ -282,6 +282,17 @@ FIT_ERRORS = (ValueError, TypeError, FloatingPointError, np.linalg.LinAlgError)
 """What a failing fit raises: :func:`_attempt` turns these into lines of the report."""
 
 
+def cross_validated_rmse(physics, u, z, settings: LoopSettings | None = None) -> float:
+    """The loop's score of a structure: the mean held-out free-run RMSE of ``physics``
+    (started from its parameter values) over the blocks of :func:`held_out_splits`, each
+    fold fitted with ``settings`` (its ``cv_horizon``, ``max_iter``, ``init_window``,
+    ``lm_scaling``) and scored after its ``init_window`` samples; a fold whose fit fails
+    scores ``inf``. Every effect set of :func:`close_the_loop` is scored so, from its own
+    fit on the record (:func:`warm_physics`)."""
+    settings = LoopSettings() if settings is None else settings
+    return _cv_rmse(_estimator(physics, settings, cv=True), u, z, settings)
+
+
 def _cv_rmse(est, u, z, settings: LoopSettings) -> float:
     """Mean held-out simulation RMSE over the blocks of :func:`held_out_splits`, the folds
     fitted by ``settings.n_jobs`` processes (a fold whose fit fails scores ``inf``)."""
@@ -322,7 +333,7 @@ def _set_cv(board, effects, warm, u, z, settings, failures):
                       settings.horizon)  # fmt: skip
     if fitted is not None:
         model = warm_physics(model, fitted)
-    return _cv_rmse(_estimator(model, settings, cv=True), u, z, settings), fitted
+    return cross_validated_rmse(model, u, z, settings), fitted
 
 
 def _sets_cv(board, steps, u, z, settings, failures) -> list:
@@ -677,7 +688,7 @@ def _select_effects(
     """
     failures = [] if failures is None else failures
     if declared_cv is None:
-        declared_cv = _cv_rmse(_estimator(physics, settings, cv=True), u, z, settings)
+        declared_cv = cross_validated_rmse(physics, u, z, settings)
     candidates = _capped(candidates, settings.max_candidates)
     shared = settings.share_programs
     alone = effect_sets(physics, [c.effect for c in candidates], shared)
@@ -864,7 +875,7 @@ def _fit_declared(physics, u, z, settings):
     that fit, its free run and its CV RMSE."""
     baseline = fit_continued(_estimator(physics, settings), u, z, settings.horizon)
     start = warm_physics(physics, baseline)
-    declared_cv = _cv_rmse(_estimator(start, settings, cv=True), u, z, settings)
+    declared_cv = cross_validated_rmse(start, u, z, settings)
     return baseline, start, baseline.simulate(u), declared_cv
 
 
