@@ -291,15 +291,18 @@ def penalised_objective(est: GreyBoxSparseRegressor) -> float:
     return float(est.fit_error_**2 + est.gamma * penalty)
 
 
-def _better_start(snapshot: GreyBoxSparseRegressor, u, z, sample_index):
+def _better_start(snapshot: GreyBoxSparseRegressor, u, z, sample_index, reference=None):
     r"""``(fit, start)``: ``snapshot`` (the path's continuation at its :math:`\gamma`) or the
     same :math:`\gamma` fitted from the physics reference, whichever reaches the lower
     :func:`penalised_objective` (by more than :data:`RESTART_MARGIN` of it); why, in
-    :func:`fit_gamma_path`."""
+    :func:`fit_gamma_path`. ``reference`` is the path's cached physics-only stage (the
+    estimator's ``_reference``), which the fit from the reference then does not redo; the
+    copy shares the snapshot's physics and library, so no program is traced again."""
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            fresh = clone(snapshot).set_params(warm_start=False)
+            fresh = copy.copy(snapshot).set_params(warm_start=False)
+            fresh._reference = reference
             fresh.fit(u, z, sample_index=sample_index)
     except ValueError:
         return snapshot, "continuation"
@@ -455,7 +458,10 @@ def fit_gamma_path(
         best = _choose(cv_error, values, one_standard_error, stop_at_divergence)
     chosen, start = int(np.flatnonzero(~failed)[-1]) if best is None else best, "continuation"
     if best is not None:
-        snapshots[chosen], start = _better_start(snapshots[chosen], u_arr, z_arr, sample_index)
+        reference = getattr(estimator, "_reference", None)
+        snapshots[chosen], start = _better_start(
+            snapshots[chosen], u_arr, z_arr, sample_index, reference
+        )
     if start == "reference" and sample_index is None:
         train_error[chosen] = _normalised_rmse(snapshots[chosen], u_arr, z_arr, 0)
     vars(estimator).update(vars(snapshots[chosen]))
