@@ -58,6 +58,13 @@ def hinge(a, sharpness: float):
     return jax.nn.softplus(sharpness * a) / sharpness
 
 
+def _checked_corner(corner) -> float:
+    corner = float(corner)
+    if not (np.isfinite(corner) and corner > 0):
+        raise ValueError(f"corner must be a positive finite number, got {corner!r}.")
+    return corner
+
+
 class Effect:
     """Base class: an effect acting on the state update and/or the output map.
 
@@ -173,7 +180,11 @@ class Overflow(Effect):
         x^+_{d} \leftarrow x^+_{d} + \rho\, o,
 
     with parameters ``{name}_level`` (:math:`h`) and, with a sink, ``{name}_fraction``
-    (:math:`\rho \in [0, 1]`; the rest leaves the system).
+    (:math:`\rho \in [0, 1]`; the rest leaves the system). The hinge is rounded over
+    ``corner`` (:math:`c`, in the state's units, not fitted):
+    :math:`\mathrm{hinge}(a) = c\,\mathrm{softplus}(a / c)`, so :math:`\beta = 1/c`. The
+    loop sets :math:`c` to 2.5 % of the state's standard deviation on the record, so the
+    rounding follows the data's units.
     """
 
     def __init__(
@@ -183,11 +194,11 @@ class Overflow(Effect):
         sink: int | None = None,
         *,
         fraction: float = 0.5,
-        sharpness: float = 20.0,
+        corner: float = 0.05,
         name: str = "overflow",
     ):
         self.state, self.level, self.sink = int(state), float(level), sink
-        self.fraction, self.sharpness, self.name = float(fraction), float(sharpness), name
+        self.fraction, self.corner, self.name = float(fraction), _checked_corner(corner), name
 
     def parameters(self) -> dict[str, Parameter]:
         params = {f"{self.name}_level": Parameter(self.level)}
@@ -201,7 +212,7 @@ class Overflow(Effect):
         return f"overflow of state {self.state}"
 
     def apply_state(self, x, u, x_next, theta):
-        excess = hinge(x_next[self.state] - theta[f"{self.name}_level"], self.sharpness)
+        excess = hinge(x_next[self.state] - theta[f"{self.name}_level"], 1.0 / self.corner)
         x_next = x_next.at[self.state].add(-excess)
         if self.sink is None:
             return x_next
@@ -222,26 +233,24 @@ class OutputSaturation(Effect):
     r"""Output ``output`` saturates at an upper level.
 
     :math:`z \leftarrow z - \mathrm{hinge}_\beta(z - z_{max})`;
-    parameter ``{name}_level`` (:math:`z_{max}`).
+    parameter ``{name}_level`` (:math:`z_{max}`). The hinge is rounded over ``corner``
+    (in the output's units, :math:`\beta = 1/c`; see :class:`Overflow`); the loop sets it
+    to 2.5 % of the simulated output's standard deviation.
     """
 
     target = "output"
 
     def __init__(
-        self, output: int, level: float, *, sharpness: float = 20.0, name: str = "saturation"
+        self, output: int, level: float, *, corner: float = 0.05, name: str = "saturation"
     ):
-        self.output, self.level, self.sharpness, self.name = (
-            int(output),
-            float(level),
-            float(sharpness),
-            name,
-        )
+        self.output, self.level, self.name = int(output), float(level), name
+        self.corner = _checked_corner(corner)
 
     def parameters(self) -> dict[str, Parameter]:
         return {f"{self.name}_level": Parameter(self.level)}
 
     def apply_output(self, x, u, z, theta):
-        excess = hinge(z[self.output] - theta[f"{self.name}_level"], self.sharpness)
+        excess = hinge(z[self.output] - theta[f"{self.name}_level"], 1.0 / self.corner)
         return z.at[self.output].add(-excess)
 
     def describe(self, state_names, output_names, values=None) -> str:

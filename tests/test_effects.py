@@ -62,7 +62,7 @@ def test_effects_compare_by_value_and_pickle():
 
 
 def test_sharp_overflow_caps_the_level_and_spills_the_fraction():
-    physics = augment(tanks_physics(), Overflow(0, 5.0, sink=1, fraction=0.25, sharpness=1e4))
+    physics = augment(tanks_physics(), Overflow(0, 5.0, sink=1, fraction=0.25, corner=1e-4))
     x, u = jnp.array([4.9, 2.0]), jnp.array([10.0])
     theta = _theta(physics)
     plain = tanks_physics().step(x, u, theta)
@@ -75,7 +75,7 @@ def test_sharp_overflow_caps_the_level_and_spills_the_fraction():
 def test_output_saturation_leak_and_friction_act_as_described():
     physics = augment(
         tanks_physics(),
-        OutputSaturation(0, 3.0, sharpness=1e4),
+        OutputSaturation(0, 3.0, corner=1e-4),
         Leak(0, rate=0.1),
         Friction(1, coulomb=0.2, width=1e-3),
     )

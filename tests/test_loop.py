@@ -137,13 +137,16 @@ def test_proposals_follow_the_sign_region_and_measured_ceiling():
     loss = Hypothesis("x1", 0, ("x1",), -1, ("x1", 8.0, np.inf), (), "x1 loses.")
     z = np.minimum(states[:, 1:], 9.0)
     facts = range_violations(z, states[:, 1:], ["x2"])
-    proposals = propose_effects([loss], facts, ("x1", "x2"), ["x2"], states, measured=(1,))
+    proposals = propose_effects(
+        [loss], facts, ("x1", "x2"), ["x2"], states, measured=(1,), outputs=states[:, 1:]
+    )
     effects = [c.effect for c in proposals]
-    assert Overflow(0, 8.0, sink=1, name="overflow_x1_to_x2") in effects
+    corner = 0.025 * float(np.std(states[:, 0]))  # both states and the output alike
+    assert Overflow(0, 8.0, sink=1, corner=corner, name="overflow_x1_to_x2") in effects
     assert Leak(0, name="leak_x1") in effects
     assert not any(isinstance(e, Friction) for e in effects)  # a level is not a velocity
-    assert OutputSaturation(0, 9.0, name="saturation_x2") in effects
-    assert Overflow(1, 9.0, name="overflow_x2") in effects
+    assert OutputSaturation(0, 9.0, corner=corner, name="saturation_x2") in effects
+    assert Overflow(1, 9.0, corner=corner, name="overflow_x2") in effects
     assert not any(isinstance(e, OutputOffset) for e in effects)
 
 
@@ -153,9 +156,9 @@ def test_a_constant_term_on_a_measured_state_proposes_a_sensor_offset():
     gain = Hypothesis("x2", 1, (), 1, None, (bias,), "x2 gains.")
     effects = [c.effect for c in propose_effects([gain], [], ("x1", "x2"), ["x2"], states, (1,))]
     assert OutputOffset(0, name="offset_x2") in effects
-    assert Overflow(0, float(np.quantile(states[:, 0], 0.8)), sink=1, name="overflow_x1_to_x2") in (
-        effects
-    )
+    level, corner = float(np.quantile(states[:, 0], 0.8)), 0.025 * float(np.std(states[:, 0]))
+    overflow = Overflow(0, level, sink=1, corner=corner, name="overflow_x1_to_x2")
+    assert overflow in effects
 
 
 def test_an_input_term_proposes_an_actuator_saturation():
@@ -176,10 +179,37 @@ def test_every_level_may_overflow_whatever_the_hypotheses_say():
     names = [c.effect.name for c in propose_effects([], [], ("x1", "x2"), ["x2"], levels)]
     assert names == ["overflow_x1_to_x2", "overflow_x2_to_x1"]  # fraction 0: out of it
     alone = propose_effects([], [], ("h",), ["h"], levels[:, :1])
-    assert [c.effect for c in alone] == [Overflow(0, float(np.quantile(levels[:, 0], 0.8)),
-                                         name="overflow_h")]  # fmt: skip
+    level, corner = float(np.quantile(levels[:, 0], 0.8)), 0.025 * float(np.std(levels[:, 0]))
+    assert [c.effect for c in alone] == [Overflow(0, level, corner=corner, name="overflow_h")]
     swinging = np.sin(np.linspace(0.0, 20.0, 200))[:, None]
     assert propose_effects([], [], ("w",), ["w"], swinging) == []  # not a level
+
+
+@pytest.mark.parametrize("scale", [1e-3, 1e3])
+def test_hinge_corners_follow_the_units_of_the_data(scale):
+    """An overflow's, a cap's and a sensor ceiling's corner are a fraction of the
+    variable's spread, so levels in other units give the same effects in those units."""
+    states = np.linspace(2.0, 10.0, 200)[:, None] * np.ones((1, 2))
+    z = np.minimum(states[:, 1:], 9.0)
+
+    def proposed(c):
+        facts = range_violations(c * z, c * states[:, 1:], ["x2"])
+        found = propose_effects([], facts, ("x1", "x2"), ["x2"], c * states, measured=(1,),
+                                outputs=c * states[:, 1:])  # fmt: skip
+        return {e.effect.name: e.effect for e in found if hasattr(e.effect, "corner")}
+
+    volts, other = proposed(1.0), proposed(scale)
+    assert sorted(volts) == sorted(other) and len(volts) == 4  # 3 overflows, 1 sensor ceiling
+    for name, effect in volts.items():
+        assert other[name].corner == pytest.approx(scale * effect.corner, rel=1e-12), name
+        assert other[name].level == pytest.approx(scale * effect.level, rel=1e-12), name
+
+
+def test_a_hinge_corner_must_be_positive():
+    with pytest.raises(ValueError, match="corner must be a positive"):
+        Overflow(0, 1.0, corner=0.0)
+    with pytest.raises(ValueError, match="corner must be a positive"):
+        OutputSaturation(0, 1.0, corner=float("nan"))
 
 
 def test_candidates_are_unique_by_name():

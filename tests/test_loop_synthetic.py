@@ -11,6 +11,7 @@ import pytest
 
 from sk_offwhite import Friction, InputSaturation, Overflow, Parameter
 from sk_offwhite.datasets import (
+    cascaded_tanks_physics,
     make_cascaded_tanks,
     make_friction_oscillator,
     make_saturating_actuator,
@@ -36,8 +37,17 @@ SYSTEMS = {
 }
 
 
+@pytest.fixture(scope="module")
+def tanks_in_volts():
+    data = _tanks()
+    result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=SETTINGS)
+    return data, Overflow, result
+
+
 @pytest.fixture(scope="module", params=sorted(SYSTEMS))
 def run(request):
+    if request.param == "tanks":
+        return request.getfixturevalue("tanks_in_volts")
     make, kind = SYSTEMS[request.param]
     data = make()
     result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=SETTINGS)
@@ -78,3 +88,38 @@ def test_validation_and_parameter_errors_drop(run):
     before = _parameter_error(result.baseline, data.true_parameters)
     after = _parameter_error(result.final, data.true_parameters)
     assert after < 0.5 * before
+
+
+def _in_other_units(physics, scale: float):
+    """The tanks' physics for levels measured in units ``scale`` times smaller: with
+    x' = c x, the outflows k sqrt(x) become k sqrt(c) sqrt(x') and the inflow k4 u becomes
+    c k4 u."""
+    factors = {"k1": np.sqrt(scale), "k2": np.sqrt(scale), "k3": np.sqrt(scale), "k4": scale}
+    updates = {}
+    for name, spec in physics.parameters.items():
+        f = factors[name]
+        bounds = tuple(None if b is None else b * f for b in spec.bounds)
+        updates[name] = Parameter(spec.value * f, bounds, fixed=spec.fixed)
+    return physics.with_parameters(**updates), factors
+
+
+def test_the_tanks_overflow_is_the_same_in_kilovolts(tanks_in_volts):
+    """Levels in kV instead of V: the overflow's corner follows the data's scale, so the
+    loop adds the same effect with the same values in the new units. (With a corner fixed
+    at 0.05 units it was 50 V wide in kV, and the loop added nothing: validation 0.112 V
+    against 0.022 V.)"""
+    data, _, volts = tanks_in_volts
+    scale = 1e-3
+    z0 = float(data.z[0, 0]) * scale
+    declared = cascaded_tanks_physics(x0=(z0, z0), sampling_time=data.sampling_time)
+    k4 = Parameter(data.true_parameters["k4"], fixed=True)
+    physics, factors = _in_other_units(declared.with_parameters(k4=k4), scale)
+    kilovolts = close_the_loop(
+        physics, data.suggested_library, data.u, data.z * scale, settings=SETTINGS
+    )
+    assert [e.name for e in kilovolts.effects] == [e.name for e in volts.effects]
+    expected = dict(volts.final.parameters_)
+    for name in expected:
+        expected[name] *= factors.get(name, scale if name.endswith("_level") else 1.0)
+    for name, value in kilovolts.final.parameters_.items():
+        np.testing.assert_allclose(value, expected[name], rtol=1e-4, err_msg=name)

@@ -20,8 +20,9 @@ The strongest dictionary terms are also proposed as they are
 outside the catalogue enters the physics. Initial values come from the data: a term
 :math:`p\,b(x, u)` linear in its parameter starts at the least-squares fit of
 :math:`b` to the hypothesis' correction (converted to the physics' time unit); thresholds
-and widths from quantiles and RMS values of the record. Candidates are identified by the
-effect's name, so a cause proposed twice is tried once.
+and widths from quantiles and RMS values of the record, the corners of overflows, caps and
+sensor ceilings from the variable's standard deviation (``CORNER_FRACTION``). Candidates
+are identified by the effect's name, so a cause proposed twice is tried once.
 """
 
 from __future__ import annotations
@@ -73,11 +74,26 @@ def _level(hypothesis: Hypothesis | None, states: np.ndarray, index: int, name: 
     return float(np.quantile(states[:, index], 0.8))
 
 
-def _overflow(source: int, level: float, sink: int | None, names) -> Overflow:
-    """An overflow of ``names[source]`` above ``level``, part of it into ``names[sink]``."""
+CORNER_FRACTION = 0.025
+"""Rounding of a hinge (overflow, cap, sensor ceiling) as a fraction of the variable's
+standard deviation on the record: about 0.05 V on the Cascaded Tanks."""
+
+
+def _corner(values) -> dict[str, float]:
+    """``corner=`` for a hinge on ``values``, or nothing (the effect's default) when the
+    variable does not vary or is not finite."""
+    spread = CORNER_FRACTION * float(np.std(values))
+    return {"corner": spread} if np.isfinite(spread) and spread > 0 else {}
+
+
+def _overflow(source: int, level: float, sink: int | None, names, states) -> Overflow:
+    """An overflow of ``names[source]`` above ``level``, part of it into ``names[sink]``,
+    rounded over a corner in the state's scale."""
+    corner = _corner(states[:, source])
     if sink is None:
-        return Overflow(source, level, name=f"overflow_{names[source]}")
-    return Overflow(source, level, sink=sink, name=f"overflow_{names[source]}_to_{names[sink]}")
+        return Overflow(source, level, name=f"overflow_{names[source]}", **corner)
+    name = f"overflow_{names[source]}_to_{names[sink]}"
+    return Overflow(source, level, sink=sink, name=name, **corner)
 
 
 def _losses(hypothesis, states, names) -> list[Candidate]:
@@ -89,7 +105,7 @@ def _losses(hypothesis, states, names) -> list[Candidate]:
     sinks = [j for j in range(len(names)) if j != i] or [None]
     out = [
         Candidate(
-            _overflow(i, level, j, names),
+            _overflow(i, level, j, names, states),
             why + (" leaving the system." if j is None else f", part of it reaching {names[j]}."),
         )
         for j in sinks
@@ -103,7 +119,7 @@ def _gains(hypothesis, states, names) -> list[Candidate]:
     i = hypothesis.equation_index
     return [
         Candidate(
-            _overflow(j, _level(None, states, j, names[j]), i, names),
+            _overflow(j, _level(None, states, j, names[j]), i, names, states),
             f"{hypothesis.sentence} An overflow of {names[j]} spilling into {names[i]}.",
         )
         for j in range(len(names))
@@ -280,7 +296,7 @@ def _calibrations(states, measured, output_names) -> list[Candidate]:
     return out
 
 
-def _ceilings(range_facts, output_names, measured, names) -> list[Candidate]:
+def _ceilings(range_facts, output_names, measured, names, states, outputs) -> list[Candidate]:
     """A measured ceiling the model exceeds: a saturating sensor, or a capped state."""
     out = []
     for fact in range_facts:
@@ -289,12 +305,11 @@ def _ceilings(range_facts, output_names, measured, names) -> list[Candidate]:
         if fact.output not in output_names:
             continue
         o = output_names.index(fact.output)
-        level = fact.measured_limit
-        out.append(
-            Candidate(OutputSaturation(o, level, name=f"saturation_{fact.output}"), fact.sentence)
-        )
+        level, name = fact.measured_limit, f"saturation_{fact.output}"
+        corner = {} if outputs is None else _corner(outputs[:, o])
+        out.append(Candidate(OutputSaturation(o, level, name=name, **corner), fact.sentence))
         if measured is not None:
-            cap = _overflow(measured[o], level, None, names)
+            cap = _overflow(measured[o], level, None, names, states)
             out.append(Candidate(cap, f"{fact.sentence} The state itself may be capped."))
     return out
 
@@ -324,7 +339,7 @@ def _spills(states, names, kinds: Kinds) -> list[Candidate]:
         for j in [k for k in levels if k != i] or [None]:
             where = "out of the system" if j is None else f"part of it into {names[j]}"
             reason = f"{names[i]} is a level: it may overflow above about {level:.3g}, {where}."
-            out.append(Candidate(_overflow(i, level, j, names), reason))
+            out.append(Candidate(_overflow(i, level, j, names, states), reason))
     return out
 
 
@@ -354,6 +369,7 @@ def propose_effects(
     input_names=(),
     kinds: Kinds | None = None,
     dt: float = 1.0,
+    outputs=None,
 ) -> list[Candidate]:
     """Candidate effects (list of :class:`Candidate`), one per effect name, by evidence.
 
@@ -377,6 +393,10 @@ def propose_effects(
         Physical kinds (:func:`~sk_offwhite._kinds.physical_kinds`); ``None``: generic.
     dt : float, default=1.0
         Time unit of the effects' rates (:func:`~sk_offwhite._effects.time_step`).
+    outputs : ndarray of shape (n_samples, n_outputs), default=None
+        Simulated outputs of the fitted baseline: an output saturation's corner is 2.5 %
+        of their standard deviation (overflows take theirs from ``states``); ``None``
+        keeps the effect's default corner.
     """
     names, output_names = tuple(state_names), list(output_names)
     states = np.asarray(states, float)
@@ -399,6 +419,7 @@ def propose_effects(
     if measured is not None:
         proposals += _offsets(hypotheses, list(measured), output_names)
         proposals += _calibrations(states, list(measured), output_names)
-    proposals += _ceilings(range_facts, output_names, measured, names)
+    outputs = None if outputs is None else np.asarray(outputs, float)
+    proposals += _ceilings(range_facts, output_names, measured, names, states, outputs)
     proposals += _spills(states, names, kinds)
     return unique_by_name(proposals)

@@ -825,6 +825,7 @@ def _candidates(physics, library, hypotheses, facts, run, u, settings):
         input_names=physics.input_names,
         kinds=physical_kinds(physics),
         dt=dt,
+        outputs=run.outputs,
     )
     declared = [
         Candidate(law, f"{law.parameter} is declared relaxable (fixed at {law.value:g})")
