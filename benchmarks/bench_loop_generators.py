@@ -24,6 +24,7 @@ import jax
 from sk_offwhite import (
     Backlash,
     DeadZone,
+    DifferenceDeadZone,
     Friction,
     InputSaturation,
     Leak,
@@ -38,6 +39,7 @@ from sk_offwhite.datasets import (
     make_cascaded_tanks,
     make_coulomb_drive,
     make_dead_zone_motor,
+    make_diode_rc,
     make_duffing_oscillator,
     make_friction_oscillator,
     make_heated_block,
@@ -76,6 +78,7 @@ SYSTEMS = {
     "tanks": (_tanks, 500, Overflow, None),
     "sensor": (make_nonlinear_sensor_tank, 400, SensorCalibration, None),
     "heater": (make_heated_block, 1000, InputSaturation, ("actuator_limit_P_level", "limit")),
+    "diode": (make_diode_rc, 600, DifferenceDeadZone, ("drop_e_v_width", "drop")),
 }
 
 

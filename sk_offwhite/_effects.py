@@ -30,6 +30,7 @@ __all__ = [
     "Backlash",
     "Bias",
     "DeadZone",
+    "DifferenceDeadZone",
     "DictionaryTerm",
     "Effect",
     "Friction",
@@ -617,6 +618,67 @@ class DeadZone(Effect):
 
     def describe(self, state_names, output_names, values=None) -> str:
         return "the actuator has a dead zone: inputs smaller than a width do nothing"
+
+
+class DifferenceDeadZone(Effect):
+    r"""Input ``input`` drives the physics through its difference with state ``state``,
+    and that difference acts only beyond a threshold :math:`w`.
+
+    With the drive :math:`d = u_j - x_i` (both in the same units: a source and a capacitor
+    voltage, a commanded and a measured position, a supply and a tank level), the declared
+    step sees :math:`u_j \leftarrow x_i + g(d)` in place of :math:`u_j`, so every term in
+    :math:`u_j - x_i` becomes :math:`g(d)`:
+
+    * ``one_sided=False``: :math:`g(d) = \mathrm{sign}(d)\max(|d| - w, 0)`, a dead zone
+      (a clearance in a spring, two anti-parallel diodes);
+    * ``one_sided=True``: :math:`g(d) = \max(d - w, 0)`, conduction in one direction only
+      past a forward drop (a diode, a check valve's cracking pressure).
+
+    Both are smoothed as :class:`DeadZone` (softplus, :math:`s` = ``sharpness``, relative
+    to :math:`w`, so the rounding follows the variables' units). Parameter
+    ``{name}_width`` (:math:`w > 0`, in the state's units). Both shapes are one mechanism:
+    a set holds at most one of them.
+    """
+
+    target = "input"
+
+    def __init__(
+        self,
+        input: int,
+        state: int,
+        width: float,
+        *,
+        one_sided: bool = False,
+        sharpness: float = 50.0,
+        name: str = "drop",
+    ):
+        if not width > 0:
+            raise ValueError(f"width must be positive, got {width!r}.")
+        self.input, self.state, self.width = int(input), int(state), float(width)
+        self.one_sided, self.sharpness, self.name = bool(one_sided), float(sharpness), name
+
+    def parameters(self) -> dict[str, Parameter]:
+        return {f"{self.name}_width": Parameter(self.width, (1e-12, None))}
+
+    @property
+    def mechanism(self) -> str:
+        """A threshold on the drive ``u_j - x_i``, whichever its shape."""
+        return f"threshold on input {self.input} minus state {self.state}"
+
+    def apply_input(self, x, u, theta):
+        width, s = theta[f"{self.name}_width"], self.sharpness
+        level = x[self.state]
+        ratio = (u[self.input] - level) / width
+        passed = jax.nn.softplus(s * (ratio - 1.0))
+        if not self.one_sided:
+            passed = passed - jax.nn.softplus(s * (-ratio - 1.0))
+        return u.at[self.input].set(level + width * passed / s)
+
+    def describe(self, state_names, output_names, values=None) -> str:
+        drive = f"the difference between its input and {state_names[self.state]}"
+        if self.one_sided:
+            return f"{drive} drives it in one direction only, past a forward drop (a diode)"
+        return f"{drive} acts only beyond a dead zone (a clearance)"
 
 
 class Backlash(Effect):

@@ -1,5 +1,5 @@
-"""Tests of the mechanical and thermal synthetic generators (drive, Duffing, pendulum,
-dead-zone motor, heated block)."""
+"""Tests of the mechanical, thermal and electrical synthetic generators (drive, Duffing,
+pendulum, dead-zone motor, heated block, RC circuit behind a diode)."""
 
 import pickle
 
@@ -12,6 +12,7 @@ import pytest
 from sk_offwhite.datasets import (
     make_coulomb_drive,
     make_dead_zone_motor,
+    make_diode_rc,
     make_duffing_oscillator,
     make_heated_block,
     make_pendulum_drag,
@@ -23,10 +24,12 @@ GENERATORS = {
     "pendulum": make_pendulum_drag,
     "motor": make_dead_zone_motor,
     "heater": make_heated_block,
+    "diode": make_diode_rc,
 }
 NAMES = list(GENERATORS)
 N = 500
-SHAPES = {"drive": (2, 1), "duffing": (2, 1), "pendulum": (2, 1), "motor": (1, 1), "heater": (1, 1)}
+SHAPES = {"drive": (2, 1), "duffing": (2, 1), "pendulum": (2, 1), "motor": (1, 1), "heater": (1, 1),
+          "diode": (1, 1)}  # fmt: skip
 KINDS = {
     "position", "velocity", "angle", "rate", "force", "voltage", "torque", "temperature",
     "generic",
@@ -37,6 +40,7 @@ BOUNDS = {  # largest |x| per state: well inside Euler's stable region, no rotat
     "pendulum": (np.pi, 10.0),
     "motor": (8.0,),
     "heater": (340.0,),  # kelvin: absolute temperatures
+    "diode": (15.0,),  # volts: never above the source's peaks
 }
 KEYS = {
     "u", "z", "u_val", "z_val", "x", "x_val", "physics", "true_parameters", "true_x0",
@@ -75,6 +79,9 @@ def _rate(name, rates, x, u):
         return -rates["quadratic_drag"] * x[..., 1] * np.abs(x[..., 1])
     if name == "heater":
         return -np.maximum(u[..., 0] - rates["limit"], 0.0) / rates["capacity"]
+    if name == "diode":
+        drive = u[..., 0] - x[..., 0]
+        return (np.maximum(drive - rates["drop"], 0.0) - drive) / rates["tau"]
     return -rates["gain"] * np.clip(u[..., 0], -rates["dead_zone"], rates["dead_zone"])
 
 
@@ -135,7 +142,9 @@ def test_hidden_effect_is_a_sizeable_part_of_the_dynamics(generated, name):
     x, u = data.x, data.u
     contribution = effect["function"](x[:-1], u[:-1])
     ratio = np.sqrt(np.mean(contribution**2) / np.mean(np.diff(x[:, eq]) ** 2))
-    assert 0.05 < ratio < 0.8
+    # the diode blocks the reverse current the declared physics would drive: its
+    # contribution is larger than the increments it leaves
+    assert 0.05 < ratio < (20.0 if name == "diode" else 0.8)
     np.testing.assert_array_equal(contribution, effect["state_function"](x[:-1], u[:-1])[:, eq])
     assert effect["sign"] == np.sign(np.sum(contribution * x[:-1, eq]))
     assert effect["function"](x[0], u[0]).shape == ()
@@ -199,7 +208,7 @@ def test_suggested_library_represents_the_hidden_effect(generated, name):
     target = data.hidden_effect["function"](data.x[:-1], data.u[:-1])
     coef, *_ = np.linalg.lstsq(theta, target, rcond=None)
     explained = 1 - np.sum((theta @ coef - target) ** 2) / np.sum((target - target.mean()) ** 2)
-    assert explained > (0.8 if name in ("motor", "heater") else 1 - 1e-9)
+    assert explained > (0.8 if name in ("motor", "heater", "diode") else 1 - 1e-9)
     customs = getattr(data.suggested_library, "libraries", [])
     for custom in (lib for lib in customs if isinstance(lib, ps.CustomLibrary)):
         for function in custom.functions:

@@ -12,6 +12,7 @@ from sk_offwhite import GreyBoxSparseRegressor
 from sk_offwhite._effects import (
     AdditiveEffect,
     Bias,
+    DifferenceDeadZone,
     Friction,
     InputSaturation,
     Leak,
@@ -85,6 +86,32 @@ def test_output_saturation_leak_and_friction_act_as_described():
     plain = tanks_physics().step(x, u, theta)
     np.testing.assert_allclose(physics.step(x, u, theta) - plain, [-0.4, -0.2], atol=1e-6)
     assert jnp.all(jnp.isfinite(jax.grad(lambda a: physics.step(a, u, theta).sum())(x)))
+
+
+@pytest.mark.parametrize("scale", [1.0, 1e-3, 1e4])
+def test_a_threshold_on_the_difference_passes_only_its_excess(scale):
+    """A diode (one-sided) and a clearance (two-sided) on the drive d = e - v: the physics
+    sees e' with e' - v = max(d - w, 0), resp. sign(d) max(|d| - w, 0), away from the
+    rounded corners, the same curve in any units of the voltages."""
+    level, width = 2.0 * scale, 0.6 * scale
+    drives = np.array([-5.0, -1.0, -0.3, 0.0, 0.3, 1.0, 5.0]) * scale
+    theta = {"drop_width": jnp.asarray(width)}
+    seen = {}
+    with jax.enable_x64(True):
+        for one_sided in (True, False):
+            effect = DifferenceDeadZone(0, 0, 0.6, one_sided=one_sided, name="drop")
+            x = jnp.array([level])
+            seen[one_sided] = np.array(
+                [effect.apply_input(x, jnp.array([level + d]), theta)[0] - level for d in drives]
+            )
+    beyond = np.maximum(np.abs(drives) - width, 0.0)
+    np.testing.assert_allclose(seen[True], np.where(drives > 0, beyond, 0.0), atol=1e-3 * width)
+    np.testing.assert_allclose(seen[False], np.sign(drives) * beyond, atol=1e-3 * width)
+    diode = DifferenceDeadZone(0, 0, 1.0, one_sided=True, name="a")
+    clearance = DifferenceDeadZone(0, 0, 1.0, name="b")
+    assert diode.mechanism == clearance.mechanism  # one mechanism: a set holds one shape
+    with pytest.raises(ValueError, match="width must be positive"):
+        DifferenceDeadZone(0, 0, 0.0)
 
 
 @pytest.mark.parametrize("scale", [1.0, 1e-3, 1e4])

@@ -9,6 +9,7 @@ import pytest
 from sk_offwhite import (
     Bias,
     DeadZone,
+    DifferenceDeadZone,
     DivergenceWarning,
     Friction,
     GreyBoxSparseRegressor,
@@ -20,6 +21,7 @@ from sk_offwhite import (
     Parameter,
     PhysicsModel,
 )
+from sk_offwhite._kinds import Kinds
 from sk_offwhite.datasets import make_leaky_tank
 from sk_offwhite.diagnose import range_violations
 from sk_offwhite.loop import (
@@ -170,6 +172,31 @@ def test_an_input_term_proposes_an_actuator_saturation():
     assert InputSaturation(0, float(np.quantile(np.abs(u), 0.9)), name="actuator_u") in effects
     assert any(isinstance(e, DeadZone) for e in effects)
     assert not any(isinstance(e, Overflow) for e in effects)  # w changes sign: not a level
+
+
+def test_an_input_of_a_states_kind_proposes_a_threshold_on_their_difference():
+    """A source voltage driving a capacitor's: a clearance and a diode on e - v, started at
+    10 % of the RMS difference; not for a generic input, nor for an input the hypothesis
+    does not name."""
+    t = np.linspace(0.0, 20.0, 300)
+    u, states = 3.0 * np.sin(t)[:, None], (2.0 + np.sin(t - 0.5))[:, None]
+    hyp = Hypothesis("v", 0, ("e", "v"), 1, None, (), "v lacks a term in e, v.")
+    voltages = Kinds(("voltage",), ("voltage",), {})
+
+    def proposed(hypothesis, kinds):
+        found = propose_effects([hypothesis], [], ("v",), ["v"], states, u=u, input_names=("e",),
+                                kinds=kinds)  # fmt: skip
+        return [c.effect for c in found if isinstance(c.effect, DifferenceDeadZone)]
+
+    width = 0.1 * float(np.sqrt(np.mean((u - states) ** 2)))
+    assert proposed(hyp, voltages) == [
+        DifferenceDeadZone(0, 0, width, name="dead_zone_e_v"),
+        DifferenceDeadZone(0, 0, width, one_sided=True, name="drop_e_v"),
+    ]
+    assert proposed(hyp, Kinds(("voltage",), ("generic",), {})) == []
+    assert proposed(hyp, Kinds(("voltage",), ("current",), {})) == []
+    unnamed = Hypothesis("v", 0, ("v",), 1, None, (), "v lacks a term in v.")
+    assert proposed(unnamed, voltages) == []
 
 
 def test_every_level_may_overflow_whatever_the_hypotheses_say():

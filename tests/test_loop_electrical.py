@@ -1,0 +1,57 @@
+"""The closed loop on an electrical circuit in SI units: an RC circuit charged through a
+diode that the declared physics does not know.
+
+The loop must name the missing effect in the capacitor's equation, add a one-sided
+threshold on the drive e - v (not the two-sided dead zone, nor a saturation or a dead
+zone of the source alone), recover the diode's drop and the time constants within 2 %, and
+bring the validation error down to the sensor's noise. The effect is proposed because the
+physics declares the source and the capacitor as voltages.
+"""
+
+import numpy as np
+import pytest
+
+from sk_offwhite import DifferenceDeadZone
+from sk_offwhite.datasets import make_diode_rc
+from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
+
+SETTINGS = LoopSettings(n_folds=2, max_iter=100, fit_delta=False, max_candidates=6)
+
+
+@pytest.fixture(scope="module")
+def run():
+    data = make_diode_rc(n_samples=600, random_state=0)
+    result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=SETTINGS)
+    return data, result
+
+
+def test_the_diode_is_named_and_added_with_its_shape(run):
+    data, result = run
+    hidden = data.hidden_effect
+    top = result.hypotheses[0]
+    assert top.equation_index == hidden["equation"] == 0
+    assert {"e", "v"} <= set(top.variables)
+    assert [type(e) for e in result.effects] == [DifferenceDeadZone], result.effects
+    assert result.effects[0].one_sided and result.effects[0].state == 0
+    alone = dict(result.single_fits)
+    assert alone["drop_e_v"] < 0.1 * alone["dead_zone_e_v"]  # one direction fits far better
+    assert alone["drop_e_v"] < 0.1 * min(v for k, v in alone.items() if k != "drop_e_v")
+    assert result.failures == []
+
+
+def test_the_drop_and_the_time_constants_are_recovered(run):
+    data, result = run
+    fitted = result.final.parameters_
+    np.testing.assert_allclose(fitted["drop_e_v_width"], data.hidden_effect["rates"]["drop"],
+                               rtol=0.02)  # fmt: skip
+    for name, value in data.true_parameters.items():
+        np.testing.assert_allclose(fitted[name], value, rtol=0.02, err_msg=name)
+
+
+def test_validation_error_falls_to_the_sensor_noise(run):
+    data, result = run
+    rows = score_models(result, {"validation": (data.u_val, data.z_val)})
+    rmse = {r["model"]: r["rmse"] for r in rows if r["protocol"] == "init_window"}
+    noise = data.noise["output"]["std"]
+    assert rmse["augmented physics"] < 1.2 * noise < 0.05 * rmse["declared physics"]
+    assert result.chosen == "final"
