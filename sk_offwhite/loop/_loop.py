@@ -640,9 +640,9 @@ def _best_starts(board, steps, u, z, settings, failures) -> list:
     keeping the fit of lowest estimation RMSE (in the place of its first occurrence).
 
     The loop's cost is not convex in the effects' parameters: one set started from the
-    parameters forward selection carried (measured on the Cascaded Tanks: a sensor
-    calibration added to two overflows, estimation RMSE 0.281) and from the effects' own
-    fits (0.139) lands in different minima, and which step came first must not decide
+    parameters forward selection carried and from the effects' own fits lands in
+    different minima (measured on the Cascaded Tanks: a sensor calibration added to two
+    overflows, estimation RMSE 2.17 and 0.142), and which step came first must not decide
     which one is cross-validated."""
     groups: dict[frozenset, list] = {}
     for step in steps:
