@@ -13,6 +13,7 @@ import pytest
 
 from sk_offwhite import DifferenceDeadZone
 from sk_offwhite.datasets import make_diode_rc
+from sk_offwhite.datasets._electrical import _diode_rc_physics
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 
 SETTINGS = LoopSettings(n_folds=2, max_iter=100, fit_delta=False, max_candidates=6)
@@ -55,3 +56,19 @@ def test_validation_error_falls_to_the_sensor_noise(run):
     noise = data.noise["output"]["std"]
     assert rmse["augmented physics"] < 1.2 * noise < 0.05 * rmse["declared physics"]
     assert result.chosen == "final"
+
+
+def test_the_same_model_in_millivolts(run):
+    """Source and capacitor in mV: the threshold's start and its smoothing follow the
+    data's scale, so the loop adds the same effect with the drop in mV and the same time
+    constants and validation error."""
+    data, volts = run
+    guess = {name: data.physics.parameters[name].value for name in ("tau", "tau_load")}
+    physics = _diode_rc_physics(guess, tuple(1e3 * data.physics.x0))
+    result = close_the_loop(physics, data.suggested_library, 1e3 * data.u, 1e3 * data.z,
+                            settings=SETTINGS)  # fmt: skip
+    assert [e.name for e in result.effects] == [e.name for e in volts.effects]
+    expected = dict(volts.final.parameters_)
+    expected["drop_e_v_width"] *= 1e3
+    for name, value in result.final.parameters_.items():
+        np.testing.assert_allclose(value, expected[name], rtol=1e-4, err_msg=name)
