@@ -59,6 +59,16 @@ def hinge(a, sharpness: float):
     return jax.nn.softplus(sharpness * a) / sharpness
 
 
+RELATIVE_FLOOR = 1e-6
+"""A positive level or width stays above this fraction of its start: a floor in the
+parameter's own scale, so that a fit in other units meets the same floor."""
+
+
+def _positive(value: float) -> Parameter:
+    """A positive parameter started at ``value``, bounded below by ``RELATIVE_FLOOR`` of it."""
+    return Parameter(value, (RELATIVE_FLOOR * abs(value), None))
+
+
 def _checked_corner(corner) -> float:
     corner = float(corner)
     if not (np.isfinite(corner) and corner > 0):
@@ -262,7 +272,7 @@ class InputSaturation(Effect):
     r"""Input ``input`` reaches the physics through a saturating actuator.
 
     Two shapes, applied before the declared step, with parameter ``{name}_level``
-    (:math:`u_{max} > 0`):
+    (:math:`u_{max} > 0`, kept above :data:`RELATIVE_FLOOR` of its start):
 
     * ``shape="tanh"``: :math:`u_j \leftarrow u_{max} \tanh(u_j / u_{max})`, a soft
       saturation (already 8 % below :math:`u_j` at half the level);
@@ -294,11 +304,13 @@ class InputSaturation(Effect):
     ):
         if shape not in self.SHAPES:
             raise ValueError(f"shape must be one of {self.SHAPES}, got {shape!r}.")
+        if not level > 0:
+            raise ValueError(f"level must be positive, got {level!r}.")
         self.input, self.level, self.name = int(input), float(level), name
         self.shape, self.sharpness = shape, float(sharpness)
 
     def parameters(self) -> dict[str, Parameter]:
-        return {f"{self.name}_level": Parameter(self.level, (1e-6, None))}
+        return {f"{self.name}_level": _positive(self.level)}
 
     @property
     def mechanism(self) -> str:
@@ -592,7 +604,8 @@ class DeadZone(Effect):
     :math:`u_j \leftarrow w\,[\mathrm{sp}(s(u_j/w - 1)) - \mathrm{sp}(s(-u_j/w - 1))]/s`,
     a smooth :math:`\mathrm{sign}(u)\max(|u| - w, 0)` (:math:`\mathrm{sp}` the softplus,
     :math:`s` = ``sharpness``, relative to :math:`w`, so the smoothing follows the input's
-    units). Parameter ``{name}_width`` (:math:`w > 0`).
+    units). Parameter ``{name}_width`` (:math:`w > 0`, kept above :data:`RELATIVE_FLOOR`
+    of its start, as every positive width of this module).
     """
 
     target = "input"
@@ -608,7 +621,7 @@ class DeadZone(Effect):
         )
 
     def parameters(self) -> dict[str, Parameter]:
-        return {f"{self.name}_width": Parameter(self.width, (1e-12, None))}
+        return {f"{self.name}_width": _positive(self.width)}
 
     def apply_input(self, x, u, theta):
         width, s = theta[f"{self.name}_width"], self.sharpness
@@ -658,7 +671,7 @@ class DifferenceDeadZone(Effect):
         self.one_sided, self.sharpness, self.name = bool(one_sided), float(sharpness), name
 
     def parameters(self) -> dict[str, Parameter]:
-        return {f"{self.name}_width": Parameter(self.width, (1e-12, None))}
+        return {f"{self.name}_width": _positive(self.width)}
 
     @property
     def mechanism(self) -> str:
@@ -715,7 +728,7 @@ class Backlash(Effect):
         return (f"{self.name}_position",)
 
     def parameters(self) -> dict[str, Parameter]:
-        return {f"{self.name}_width": Parameter(self.width, (1e-12, None))}
+        return {f"{self.name}_width": _positive(self.width)}
 
     def hidden_initial(self) -> tuple[float, ...]:
         return (self.position,)

@@ -11,7 +11,9 @@ from conftest import tanks_physics
 from sk_offwhite import GreyBoxSparseRegressor
 from sk_offwhite._effects import (
     AdditiveEffect,
+    Backlash,
     Bias,
+    DeadZone,
     DifferenceDeadZone,
     Friction,
     InputSaturation,
@@ -86,6 +88,23 @@ def test_output_saturation_leak_and_friction_act_as_described():
     plain = tanks_physics().step(x, u, theta)
     np.testing.assert_allclose(physics.step(x, u, theta) - plain, [-0.4, -0.2], atol=1e-6)
     assert jnp.all(jnp.isfinite(jax.grad(lambda a: physics.step(a, u, theta).sum())(x)))
+
+
+@pytest.mark.parametrize("scale", [1e-9, 1.0, 1e9])
+def test_positive_levels_and_widths_have_floors_in_their_own_scale(scale):
+    """A saturation level or a width in any units (a heater in GW, a play in nm) keeps a
+    floor at 1e-6 of its start: an absolute floor would bind in some units only."""
+    effects = [
+        InputSaturation(0, 60.0 * scale),
+        DeadZone(0, 0.3 * scale),
+        DifferenceDeadZone(0, 0, 0.6 * scale),
+        Backlash(0, 0.05 * scale),
+    ]
+    for effect in effects:
+        ((name, spec),) = effect.parameters().items()
+        assert spec.bounds == (pytest.approx(1e-6 * spec.value, rel=1e-12), None), name
+    with pytest.raises(ValueError, match="level must be positive"):
+        InputSaturation(0, 0.0)
 
 
 @pytest.mark.parametrize("scale", [1.0, 1e-3, 1e4])

@@ -204,6 +204,8 @@ def _actuators(hypothesis, u, input_names, kinds: Kinds) -> list[Candidate]:
             continue
         rms = float(np.sqrt(np.mean(u[:, j] ** 2)))
         level = float(np.quantile(np.abs(u[:, j]), 0.9))
+        if not level > 0:  # an input at zero most of the time: no level to start from
+            continue
         out += [
             Candidate(
                 InputSaturation(j, level, name=f"actuator_{n}"),
