@@ -37,6 +37,7 @@ from sk_offwhite import (
 from sk_offwhite.datasets import (
     make_backlash_servo,
     make_cascaded_tanks,
+    make_clearance_coupling,
     make_coulomb_drive,
     make_dead_zone_motor,
     make_diode_rc,
@@ -79,6 +80,12 @@ SYSTEMS = {
     "sensor": (make_nonlinear_sensor_tank, 400, SensorCalibration, None),
     "heater": (make_heated_block, 1000, InputSaturation, ("actuator_limit_P_level", "limit")),
     "diode": (make_diode_rc, 600, DifferenceDeadZone, ("drop_e_v_width", "drop")),
+    "clearance": (
+        make_clearance_coupling,
+        600,
+        DifferenceDeadZone,
+        ("dead_zone_u_theta_width", "gap"),
+    ),
 }
 
 

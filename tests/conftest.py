@@ -33,7 +33,7 @@ LONGEST_FIRST = (
     "test_sklearn.py",
     "test_estimator.py",
     "test_loop.py",
-    "test_loop_electrical.py",
+    "test_loop_thresholds.py",
     "test_certify_identifiability.py",
     "test_vehicle.py",
 )

@@ -1,5 +1,6 @@
 """Tests of the mechanical, thermal and electrical synthetic generators (drive, Duffing,
-pendulum, dead-zone motor, heated block, RC circuit behind a diode)."""
+pendulum, dead-zone motor, coupling with a clearance, heated block, RC circuit behind a
+diode)."""
 
 import pickle
 
@@ -10,6 +11,7 @@ import pysindy as ps
 import pytest
 
 from sk_offwhite.datasets import (
+    make_clearance_coupling,
     make_coulomb_drive,
     make_dead_zone_motor,
     make_diode_rc,
@@ -25,11 +27,12 @@ GENERATORS = {
     "motor": make_dead_zone_motor,
     "heater": make_heated_block,
     "diode": make_diode_rc,
+    "clearance": make_clearance_coupling,
 }
 NAMES = list(GENERATORS)
 N = 500
 SHAPES = {"drive": (2, 1), "duffing": (2, 1), "pendulum": (2, 1), "motor": (1, 1), "heater": (1, 1),
-          "diode": (1, 1)}  # fmt: skip
+          "diode": (1, 1), "clearance": (2, 1)}  # fmt: skip
 KINDS = {
     "position", "velocity", "angle", "rate", "force", "voltage", "torque", "temperature",
     "generic",
@@ -41,6 +44,7 @@ BOUNDS = {  # largest |x| per state: well inside Euler's stable region, no rotat
     "motor": (8.0,),
     "heater": (340.0,),  # kelvin: absolute temperatures
     "diode": (15.0,),  # volts: never above the source's peaks
+    "clearance": (3.0, 40.0),  # the load is jerked from rest at the first samples
 }
 KEYS = {
     "u", "z", "u_val", "z_val", "x", "x_val", "physics", "true_parameters", "true_x0",
@@ -82,6 +86,10 @@ def _rate(name, rates, x, u):
     if name == "diode":
         drive = u[..., 0] - x[..., 0]
         return (np.maximum(drive - rates["drop"], 0.0) - drive) / rates["tau"]
+    if name == "clearance":
+        deflection = u[..., 0] - x[..., 0]
+        slack = np.sign(deflection) * np.maximum(np.abs(deflection) - rates["gap"], 0.0)
+        return rates["k"] * (slack - deflection)
     return -rates["gain"] * np.clip(u[..., 0], -rates["dead_zone"], rates["dead_zone"])
 
 
@@ -208,7 +216,7 @@ def test_suggested_library_represents_the_hidden_effect(generated, name):
     target = data.hidden_effect["function"](data.x[:-1], data.u[:-1])
     coef, *_ = np.linalg.lstsq(theta, target, rcond=None)
     explained = 1 - np.sum((theta @ coef - target) ** 2) / np.sum((target - target.mean()) ** 2)
-    assert explained > (0.8 if name in ("motor", "heater", "diode") else 1 - 1e-9)
+    assert explained > (0.8 if name in ("motor", "heater", "diode", "clearance") else 1 - 1e-9)
     customs = getattr(data.suggested_library, "libraries", [])
     for custom in (lib for lib in customs if isinstance(lib, ps.CustomLibrary)):
         for function in custom.functions:

@@ -176,27 +176,25 @@ def test_an_input_term_proposes_an_actuator_saturation():
 
 def test_an_input_of_a_states_kind_proposes_a_threshold_on_their_difference():
     """A source voltage driving a capacitor's: a clearance and a diode on e - v, started at
-    10 % of the RMS difference; not for a generic input, nor for an input the hypothesis
-    does not name."""
+    10 % of the RMS difference, whatever the hypotheses name (none here); not for a
+    generic input or one of another kind, nor without the inputs."""
     t = np.linspace(0.0, 20.0, 300)
     u, states = 3.0 * np.sin(t)[:, None], (2.0 + np.sin(t - 0.5))[:, None]
-    hyp = Hypothesis("v", 0, ("e", "v"), 1, None, (), "v lacks a term in e, v.")
     voltages = Kinds(("voltage",), ("voltage",), {})
 
-    def proposed(hypothesis, kinds):
-        found = propose_effects([hypothesis], [], ("v",), ["v"], states, u=u, input_names=("e",),
+    def proposed(kinds, inputs=u):
+        found = propose_effects([], [], ("v",), ["v"], states, u=inputs, input_names=("e",),
                                 kinds=kinds)  # fmt: skip
         return [c.effect for c in found if isinstance(c.effect, DifferenceDeadZone)]
 
     width = 0.1 * float(np.sqrt(np.mean((u - states) ** 2)))
-    assert proposed(hyp, voltages) == [
+    assert proposed(voltages) == [
         DifferenceDeadZone(0, 0, width, name="dead_zone_e_v"),
         DifferenceDeadZone(0, 0, width, one_sided=True, name="drop_e_v"),
     ]
-    assert proposed(hyp, Kinds(("voltage",), ("generic",), {})) == []
-    assert proposed(hyp, Kinds(("voltage",), ("current",), {})) == []
-    unnamed = Hypothesis("v", 0, ("v",), 1, None, (), "v lacks a term in v.")
-    assert proposed(unnamed, voltages) == []
+    assert proposed(Kinds(("voltage",), ("generic",), {})) == []
+    assert proposed(Kinds(("voltage",), ("current",), {})) == []
+    assert proposed(voltages, inputs=None) == []
 
 
 def test_every_level_may_overflow_whatever_the_hypotheses_say():

@@ -12,6 +12,7 @@ from sk_offwhite.datasets._cascaded_tanks import (
     load_cascaded_tanks,
     safe_sqrt,
 )
+from sk_offwhite.datasets._coupling import make_clearance_coupling
 from sk_offwhite.datasets._electrical import make_diode_rc
 from sk_offwhite.datasets._mechanical import (
     make_coulomb_drive,
@@ -36,6 +37,7 @@ __all__ = [
     "load_cascaded_tanks",
     "make_backlash_servo",
     "make_cascaded_tanks",
+    "make_clearance_coupling",
     "make_coulomb_drive",
     "make_diode_rc",
     "make_dead_zone_motor",

@@ -10,8 +10,9 @@ only where they make physical sense for the variables' kinds
   stiffness in the kinematic partner (the position), a constant (a force offset);
 * any equation: a constant (:class:`~sk_offwhite.Bias`), a leak for generic states;
 * inputs in the hypothesis that are efforts or flows: a saturating actuator and a dead zone;
-* inputs of a state's declared kind: a threshold on their difference with that state, two-
-  or one-sided (:class:`~sk_offwhite.DifferenceDeadZone`: a clearance, a diode);
+* inputs of a state's declared kind, whatever the hypotheses say: a threshold on their
+  difference with that state, two- or one-sided (:class:`~sk_offwhite.DifferenceDeadZone`:
+  a clearance, a diode);
 * inputs that are positions or angles: play in the transmission
   (:class:`~sk_offwhite.Backlash`, an effect with a hidden state);
 * measured states: a sensor offset and a sensor calibration (offset, gain, curvature:
@@ -223,21 +224,23 @@ def _actuators(hypothesis, u, input_names, kinds: Kinds) -> list[Candidate]:
     return out
 
 
-def _drives(hypothesis, u, states, input_names, names, kinds: Kinds) -> list[Candidate]:
-    """A correction in an input that has the declared kind of a state (a source voltage
-    and a capacitor's, a commanded and a measured position): perhaps the input drives
-    through its difference with that state past a threshold, in both directions (a
-    clearance) or in one (a diode, a check valve). The threshold starts at 10 % of the
-    RMS difference on the record."""
+def _drives(u, states, input_names, names, kinds: Kinds) -> list[Candidate]:
+    """An input that has the declared kind of a state (a source voltage and a capacitor's,
+    a drive's angle and its load's) may drive through their difference past a threshold,
+    in both directions (a clearance) or in one (a diode, a check valve). Proposed whatever
+    the hypotheses say, as the overflows: the linearised evidence of a threshold can name
+    other variables (a clearance in a coupling read as a term in the load's speed). The
+    threshold starts at 10 % of the RMS difference on the record."""
     out = []
     for j, n in enumerate(input_names):
-        if n not in hypothesis.variables or kinds.inputs[j] == "generic":
+        if kinds.inputs[j] == "generic":
             continue
         for i in (i for i, kind in enumerate(kinds.states) if kind == kinds.inputs[j]):
             width = 0.1 * float(np.sqrt(np.mean((u[:, j] - states[:, i]) ** 2)))
             if not (np.isfinite(width) and width > 0):
                 continue
-            why = f"{hypothesis.sentence} {n} may drive through {n} - {names[i]}"
+            drive = f"{n} - {names[i]}"
+            why = f"{n} and {names[i]} are both {kinds.inputs[j]}s: {n} may drive through {drive}"
             out += [
                 Candidate(
                     DifferenceDeadZone(j, i, width, name=f"dead_zone_{n}_{names[i]}"),
@@ -444,7 +447,6 @@ def propose_effects(
         if u_arr is not None:
             found += _actuators(hypothesis, u_arr, tuple(input_names), kinds)
             found += _transmissions(hypothesis, u_arr, tuple(input_names), kinds)
-            found += _drives(hypothesis, u_arr, states, tuple(input_names), names, kinds)
         u_rows = np.zeros((len(states), 0)) if u_arr is None else u_arr
         proposals += [
             Candidate(_fitted_start(c.effect, hypothesis, states, u_rows, dt), c.reason)
@@ -456,4 +458,6 @@ def propose_effects(
     outputs = None if outputs is None else np.asarray(outputs, float)
     proposals += _ceilings(range_facts, output_names, measured, names, states, outputs)
     proposals += _spills(states, names, kinds)
+    if u_arr is not None:
+        proposals += _drives(u_arr, states, tuple(input_names), names, kinds)
     return unique_by_name(proposals)

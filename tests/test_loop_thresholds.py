@@ -1,18 +1,20 @@
-"""The closed loop on an electrical circuit in SI units: an RC circuit charged through a
-diode that the declared physics does not know.
+"""The closed loop on a threshold on a difference, in electronics and in mechanics.
 
-The loop must name the missing effect in the capacitor's equation, add a one-sided
-threshold on the drive e - v (not the two-sided dead zone, nor a saturation or a dead
-zone of the source alone), recover the diode's drop and the time constants within 2 %, and
-bring the validation error down to the sensor's noise. The effect is proposed because the
-physics declares the source and the capacitor as voltages.
+An RC circuit charged through a diode (SI units): the loop must name the missing effect in
+the capacitor's equation, add a one-sided threshold on the drive e - v (not the two-sided
+dead zone, nor a saturation or a dead zone of the source alone), recover the diode's drop
+and the time constants within 2 %, bring the validation error down to the sensor's noise,
+and give the same model in millivolts. A load driven through a spring coupling with a
+clearance: the loop must add the two-sided dead zone on u - theta, not the play
+(`Backlash`, which has memory) nor the diode's shape, and recover the gap. Both are
+proposed because the physics declares the input and a state of the same kind.
 """
 
 import numpy as np
 import pytest
 
 from sk_offwhite import DifferenceDeadZone
-from sk_offwhite.datasets import make_diode_rc
+from sk_offwhite.datasets import make_clearance_coupling, make_diode_rc
 from sk_offwhite.datasets._electrical import _diode_rc_physics
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 
@@ -72,3 +74,27 @@ def test_the_same_model_in_millivolts(run):
     expected["drop_e_v_width"] *= 1e3
     for name, value in result.final.parameters_.items():
         np.testing.assert_allclose(value, expected[name], rtol=1e-4, err_msg=name)
+
+
+@pytest.fixture(scope="module")
+def coupling():
+    data = make_clearance_coupling(n_samples=600, random_state=0)
+    result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=SETTINGS)
+    return data, result
+
+
+def test_a_clearance_is_told_apart_from_a_play_and_a_diode(coupling):
+    data, result = coupling
+    assert [e.name for e in result.effects] == ["dead_zone_u_theta"], result.effects
+    assert not result.effects[0].one_sided
+    alone = dict(result.single_fits)
+    assert alone["dead_zone_u_theta"] < 0.25 * min(alone["backlash_u"], alone["drop_u_theta"])
+    fitted = result.final.parameters_
+    gap = data.hidden_effect["rates"]["gap"]
+    np.testing.assert_allclose(fitted["dead_zone_u_theta_width"], gap, rtol=0.02)
+    for name, value in data.true_parameters.items():
+        np.testing.assert_allclose(fitted[name], value, rtol=0.02, err_msg=name)
+    rows = score_models(result, {"validation": (data.u_val, data.z_val)})
+    rmse = {r["model"]: r["rmse"] for r in rows if r["protocol"] == "init_window"}
+    noise = data.noise["output"]["std"]
+    assert rmse["augmented physics"] < 1.2 * noise < 0.25 * rmse["declared physics"]
