@@ -12,6 +12,8 @@ Variants:
   they are declared relaxable (``--relax-exponents`` in the main job);
 * the sensor calibration of degree 3 and 4 instead of 2;
 * the pump acting 1, 2 or 3 samples late (the input delayed, on both records);
+* the overflows' corners fitted (``Overflow(..., fit_corner=True)``) instead of fixed at
+  2.5 % of each level's spread;
 * multiple starts of the effects' levels and fraction (``--starts``): does the fit end in
   the best optimum the estimation record has?
 
@@ -33,6 +35,7 @@ import pysindy as ps
 
 from sk_offwhite import (
     GreyBoxSparseRegressor,
+    Overflow,
     Parameter,
     RelaxedLaw,
     SensorCalibration,
@@ -127,6 +130,14 @@ def variants(result, declared):
         yield f"sensor calibration of degree {degree}", augment(declared, *others, calibration), 0
     for delay in (1, 2, 3):
         yield f"pump {delay} sample(s) late", augment(declared, *effects), delay
+    sharp = [replace_fields(e, fit_corner=True) if isinstance(e, Overflow) else e for e in effects]
+    yield "overflows' corners fitted", augment(declared, *sharp), 0
+
+
+def replace_fields(effect, **fields):
+    """``effect`` rebuilt with some constructor arguments changed (effects' attributes are
+    their constructor's arguments)."""
+    return type(effect)(**{**vars(effect), **fields})
 
 
 def multiple_starts(result, declared, data, settings) -> list[tuple]:

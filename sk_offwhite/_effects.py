@@ -69,6 +69,17 @@ def _positive(value: float) -> Parameter:
     return Parameter(value, (RELATIVE_FLOOR * abs(value), None))
 
 
+def _hinge_corner(effect, theta):
+    """The corner of ``effect``'s hinge: its fitted parameter ``{name}_corner`` with
+    ``fit_corner``, else the fixed ``corner``."""
+    return theta[f"{effect.name}_corner"] if effect.fit_corner else effect.corner
+
+
+def _corner_parameters(effect) -> dict[str, Parameter]:
+    """``{name}_corner`` when ``effect`` fits its corner, else nothing."""
+    return {f"{effect.name}_corner": _positive(effect.corner)} if effect.fit_corner else {}
+
+
 def _checked_corner(corner) -> float:
     corner = float(corner)
     if not (np.isfinite(corner) and corner > 0):
@@ -192,10 +203,12 @@ class Overflow(Effect):
 
     with parameters ``{name}_level`` (:math:`h`) and, with a sink, ``{name}_fraction``
     (:math:`\rho \in [0, 1]`; the rest leaves the system). The hinge is rounded over
-    ``corner`` (:math:`c`, in the state's units, not fitted):
+    ``corner`` (:math:`c`, in the state's units):
     :math:`\mathrm{hinge}(a) = c\,\mathrm{softplus}(a / c)`, so :math:`\beta = 1/c`. The
     loop sets :math:`c` to 2.5 % of the state's standard deviation on the record, so the
-    rounding follows the data's units.
+    rounding follows the data's units. With ``fit_corner=True`` the corner is a parameter,
+    ``{name}_corner``, started at ``corner`` and kept above :data:`RELATIVE_FLOOR` of it:
+    the data decide how sharp the overflow is (a weir spills gradually, a rim at once).
     """
 
     def __init__(
@@ -206,16 +219,18 @@ class Overflow(Effect):
         *,
         fraction: float = 0.5,
         corner: float = 0.05,
+        fit_corner: bool = False,
         name: str = "overflow",
     ):
         self.state, self.level, self.sink = int(state), float(level), sink
         self.fraction, self.corner, self.name = float(fraction), _checked_corner(corner), name
+        self.fit_corner = bool(fit_corner)
 
     def parameters(self) -> dict[str, Parameter]:
         params = {f"{self.name}_level": Parameter(self.level)}
         if self.sink is not None:
             params[f"{self.name}_fraction"] = Parameter(self.fraction, (0.0, 1.0))
-        return params
+        return {**params, **_corner_parameters(self)}
 
     @property
     def mechanism(self) -> str:
@@ -223,7 +238,8 @@ class Overflow(Effect):
         return f"overflow of state {self.state}"
 
     def apply_state(self, x, u, x_next, theta):
-        excess = hinge(x_next[self.state] - theta[f"{self.name}_level"], 1.0 / self.corner)
+        corner = _hinge_corner(self, theta)
+        excess = hinge(x_next[self.state] - theta[f"{self.name}_level"], 1.0 / corner)
         x_next = x_next.at[self.state].add(-excess)
         if self.sink is None:
             return x_next
@@ -245,23 +261,31 @@ class OutputSaturation(Effect):
 
     :math:`z \leftarrow z - \mathrm{hinge}_\beta(z - z_{max})`;
     parameter ``{name}_level`` (:math:`z_{max}`). The hinge is rounded over ``corner``
-    (in the output's units, :math:`\beta = 1/c`; see :class:`Overflow`); the loop sets it
-    to 2.5 % of the simulated output's standard deviation.
+    (in the output's units, :math:`\beta = 1/c`; fitted as ``{name}_corner`` with
+    ``fit_corner=True``; see :class:`Overflow`); the loop sets it to 2.5 % of the simulated
+    output's standard deviation.
     """
 
     target = "output"
 
     def __init__(
-        self, output: int, level: float, *, corner: float = 0.05, name: str = "saturation"
+        self,
+        output: int,
+        level: float,
+        *,
+        corner: float = 0.05,
+        fit_corner: bool = False,
+        name: str = "saturation",
     ):
         self.output, self.level, self.name = int(output), float(level), name
-        self.corner = _checked_corner(corner)
+        self.corner, self.fit_corner = _checked_corner(corner), bool(fit_corner)
 
     def parameters(self) -> dict[str, Parameter]:
-        return {f"{self.name}_level": Parameter(self.level)}
+        return {f"{self.name}_level": Parameter(self.level), **_corner_parameters(self)}
 
     def apply_output(self, x, u, z, theta):
-        excess = hinge(z[self.output] - theta[f"{self.name}_level"], 1.0 / self.corner)
+        corner = _hinge_corner(self, theta)
+        excess = hinge(z[self.output] - theta[f"{self.name}_level"], 1.0 / corner)
         return z.at[self.output].add(-excess)
 
     def describe(self, state_names, output_names, values=None) -> str:

@@ -75,6 +75,26 @@ def test_sharp_overflow_caps_the_level_and_spills_the_fraction():
     np.testing.assert_allclose(capped[1] - plain[1], 0.25 * (plain[0] - 5.0), rtol=1e-3)
 
 
+def test_a_fitted_corner_is_a_parameter_that_sets_the_hinge():
+    """``fit_corner=True``: the corner is ``{name}_corner`` (floor 1e-6 of its start), and
+    the value in theta, not the constructor's, rounds the hinge."""
+    effect = Overflow(0, 5.0, sink=1, fraction=0.25, corner=0.5, fit_corner=True)
+    spec = effect.parameters()["overflow_corner"]
+    assert spec.value == 0.5 and spec.bounds == (pytest.approx(5e-7), None)
+    assert "overflow_corner" not in Overflow(0, 5.0, corner=0.5).parameters()
+    saturation = OutputSaturation(0, 3.0, fit_corner=True)
+    assert set(saturation.parameters()) == {"saturation_level", "saturation_corner"}
+    physics = augment(tanks_physics(), effect)
+    x, u = jnp.array([4.9, 2.0]), jnp.array([10.0])
+    theta = _theta(physics)
+    plain = tanks_physics().step(x, u, theta)
+    sharp = physics.step(x, u, {**theta, "overflow_corner": jnp.asarray(1e-4)})
+    np.testing.assert_allclose(sharp[0], 5.0, atol=1e-3)
+    np.testing.assert_allclose(sharp[1] - plain[1], 0.25 * (plain[0] - 5.0), rtol=1e-3)
+    rounded = physics.step(x, u, theta)  # corner 0.5: the excess is larger than the hard one
+    assert float(rounded[0]) < float(sharp[0]) - 0.01
+
+
 def test_output_saturation_leak_and_friction_act_as_described():
     physics = augment(
         tanks_physics(),
