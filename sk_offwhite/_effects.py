@@ -209,6 +209,8 @@ class Overflow(Effect):
     rounding follows the data's units. With ``fit_corner=True`` the corner is a parameter,
     ``{name}_corner``, started at ``corner`` and kept above :data:`RELATIVE_FLOOR` of it:
     the data decide how sharp the overflow is (a weir spills gradually, a rim at once).
+    A corner driven to its floor leaves the cost kinked there and the Hessian singular in
+    it (infinite standard errors): start it from a fitted model, and read it as "sharp".
     """
 
     def __init__(
