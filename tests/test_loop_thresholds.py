@@ -3,11 +3,13 @@
 An RC circuit charged through a diode (SI units): the loop must name the missing effect in
 the capacitor's equation, add a one-sided threshold on the drive e - v (not the two-sided
 dead zone, nor a saturation or a dead zone of the source alone), recover the diode's drop
-and the time constants within 2 %, bring the validation error down to the sensor's noise,
-and give the same model in millivolts. A load driven through a spring coupling with a
-clearance: the loop must add the two-sided dead zone on u - theta, not the play
-(`Backlash`, which has memory) nor the diode's shape, and recover the gap. Both are
-proposed because the physics declares the input and a state of the same kind.
+and the time constants within 2 %, and bring the validation error down to the sensor's
+noise. (The same model in millivolts was measured, not tested here: the tanks' loop in
+kilovolts, in test_loop_synthetic.py, tests the units at the loop's level.) A load driven
+through a spring coupling with a clearance: the loop must add the two-sided dead zone on
+u - theta, not the play (`Backlash`, which has memory) nor the diode's shape, and recover
+the gap. Both are proposed because the physics declares the input and a state of the same
+kind.
 """
 
 import numpy as np
@@ -15,17 +17,26 @@ import pytest
 
 from sk_offwhite import DifferenceDeadZone
 from sk_offwhite.datasets import make_clearance_coupling, make_diode_rc
-from sk_offwhite.datasets._electrical import _diode_rc_physics
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 
 SETTINGS = LoopSettings(n_folds=2, max_iter=100, fit_delta=False, max_candidates=6)
 
 
-@pytest.fixture(scope="module")
-def run():
-    data = make_diode_rc(n_samples=600, random_state=0)
+def _looped(make):
+    """``(data, loop result)`` of a 600-sample record of ``make`` (seed 0)."""
+    data = make(n_samples=600, random_state=0)
     result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=SETTINGS)
     return data, result
+
+
+def _validation(result, data) -> dict:
+    rows = score_models(result, {"validation": (data.u_val, data.z_val)})
+    return {r["model"]: r["rmse"] for r in rows if r["protocol"] == "init_window"}
+
+
+@pytest.fixture(scope="module")
+def run():
+    return _looped(make_diode_rc)
 
 
 def test_the_diode_is_named_and_added_with_its_shape(run):
@@ -53,34 +64,15 @@ def test_the_drop_and_the_time_constants_are_recovered(run):
 
 def test_validation_error_falls_to_the_sensor_noise(run):
     data, result = run
-    rows = score_models(result, {"validation": (data.u_val, data.z_val)})
-    rmse = {r["model"]: r["rmse"] for r in rows if r["protocol"] == "init_window"}
+    rmse = _validation(result, data)
     noise = data.noise["output"]["std"]
     assert rmse["augmented physics"] < 1.2 * noise < 0.05 * rmse["declared physics"]
     assert result.chosen == "final"
 
 
-def test_the_same_model_in_millivolts(run):
-    """Source and capacitor in mV: the threshold's start and its smoothing follow the
-    data's scale, so the loop adds the same effect with the drop in mV and the same time
-    constants and validation error."""
-    data, volts = run
-    guess = {name: data.physics.parameters[name].value for name in ("tau", "tau_load")}
-    physics = _diode_rc_physics(guess, tuple(1e3 * data.physics.x0))
-    result = close_the_loop(physics, data.suggested_library, 1e3 * data.u, 1e3 * data.z,
-                            settings=SETTINGS)  # fmt: skip
-    assert [e.name for e in result.effects] == [e.name for e in volts.effects]
-    expected = dict(volts.final.parameters_)
-    expected["drop_e_v_width"] *= 1e3
-    for name, value in result.final.parameters_.items():
-        np.testing.assert_allclose(value, expected[name], rtol=1e-4, err_msg=name)
-
-
 @pytest.fixture(scope="module")
 def coupling():
-    data = make_clearance_coupling(n_samples=600, random_state=0)
-    result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=SETTINGS)
-    return data, result
+    return _looped(make_clearance_coupling)
 
 
 def test_a_clearance_is_told_apart_from_a_play_and_a_diode(coupling):
@@ -94,7 +86,6 @@ def test_a_clearance_is_told_apart_from_a_play_and_a_diode(coupling):
     np.testing.assert_allclose(fitted["dead_zone_u_theta_width"], gap, rtol=0.02)
     for name, value in data.true_parameters.items():
         np.testing.assert_allclose(fitted[name], value, rtol=0.02, err_msg=name)
-    rows = score_models(result, {"validation": (data.u_val, data.z_val)})
-    rmse = {r["model"]: r["rmse"] for r in rows if r["protocol"] == "init_window"}
+    rmse = _validation(result, data)
     noise = data.noise["output"]["std"]
     assert rmse["augmented physics"] < 1.2 * noise < 0.25 * rmse["declared physics"]
