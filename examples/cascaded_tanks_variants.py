@@ -130,14 +130,8 @@ def variants(result, declared):
         yield f"sensor calibration of degree {degree}", augment(declared, *others, calibration), 0
     for delay in (1, 2, 3):
         yield f"pump {delay} sample(s) late", augment(declared, *effects), delay
-    sharp = [replace_fields(e, fit_corner=True) if isinstance(e, Overflow) else e for e in effects]
+    sharp = [e.replace(fit_corner=True) if isinstance(e, Overflow) else e for e in effects]
     yield "overflows' corners fitted", augment(declared, *sharp), 0
-
-
-def replace_fields(effect, **fields):
-    """``effect`` rebuilt with some constructor arguments changed (effects' attributes are
-    their constructor's arguments)."""
-    return type(effect)(**{**vars(effect), **fields})
 
 
 def multiple_starts(result, declared, data, settings) -> list[tuple]:

@@ -69,6 +69,17 @@ def _positive(value: float) -> Parameter:
     return Parameter(value, (RELATIVE_FLOOR * abs(value), None))
 
 
+def _beyond(ratio, sharpness: float, one_sided: bool = False):
+    r"""How far ``ratio`` lies beyond :math:`\pm 1`, smoothed and times ``sharpness``:
+    :math:`\mathrm{sp}(s(r - 1)) - \mathrm{sp}(s(-r - 1))`, or its first term alone when
+    ``one_sided`` (divided by :math:`s`, a smooth :math:`\mathrm{sign}(r)\max(|r| - 1, 0)`,
+    resp. :math:`\max(r - 1, 0)`): the dead zones and the hard input limit."""
+    passed = jax.nn.softplus(sharpness * (ratio - 1.0))
+    if one_sided:
+        return passed
+    return passed - jax.nn.softplus(sharpness * (-ratio - 1.0))
+
+
 def _hinge_corner(effect, theta):
     """The corner of ``effect``'s hinge: its fitted parameter ``{name}_corner`` with
     ``fit_corner``, else the fixed ``corner``."""
@@ -150,6 +161,11 @@ class Effect:
 
     def __hash__(self) -> int:
         return hash(self._key())
+
+    def replace(self, **changes) -> Effect:
+        """A copy with some constructor arguments changed (an effect's attributes are its
+        constructor's arguments)."""
+        return type(self)(**{**vars(self), **changes})
 
     def __repr__(self) -> str:
         args = ", ".join(f"{k}={v!r}" for k, v in vars(self).items())
@@ -347,9 +363,8 @@ class InputSaturation(Effect):
         level, value = theta[f"{self.name}_level"], u[self.input]
         if self.shape == "tanh":
             return u.at[self.input].set(level * jnp.tanh(value / level))
-        ratio, s = value / level, self.sharpness
-        beyond = jax.nn.softplus(s * (ratio - 1.0)) - jax.nn.softplus(s * (-ratio - 1.0))
-        return u.at[self.input].set(value - level * beyond / s)
+        s = self.sharpness
+        return u.at[self.input].set(value - level * _beyond(value / level, s) / s)
 
     def describe(self, state_names, output_names, values=None) -> str:
         if self.shape == "clip":
@@ -651,9 +666,7 @@ class DeadZone(Effect):
 
     def apply_input(self, x, u, theta):
         width, s = theta[f"{self.name}_width"], self.sharpness
-        ratio = u[self.input] / width
-        inside = jax.nn.softplus(s * (ratio - 1.0)) - jax.nn.softplus(s * (-ratio - 1.0))
-        return u.at[self.input].set(width * inside / s)
+        return u.at[self.input].set(width * _beyond(u[self.input] / width, s) / s)
 
     def describe(self, state_names, output_names, values=None) -> str:
         return "the actuator has a dead zone: inputs smaller than a width do nothing"
@@ -705,12 +718,8 @@ class DifferenceDeadZone(Effect):
         return f"threshold on input {self.input} minus state {self.state}"
 
     def apply_input(self, x, u, theta):
-        width, s = theta[f"{self.name}_width"], self.sharpness
-        level = x[self.state]
-        ratio = (u[self.input] - level) / width
-        passed = jax.nn.softplus(s * (ratio - 1.0))
-        if not self.one_sided:
-            passed = passed - jax.nn.softplus(s * (-ratio - 1.0))
+        width, s, level = theta[f"{self.name}_width"], self.sharpness, x[self.state]
+        passed = _beyond((u[self.input] - level) / width, s, self.one_sided)
         return u.at[self.input].set(level + width * passed / s)
 
     def describe(self, state_names, output_names, values=None) -> str:

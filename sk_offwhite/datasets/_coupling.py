@@ -8,11 +8,11 @@ side stays where the input left it), here the coupling's spring is slack inside 
 
 from __future__ import annotations
 
-import jax.numpy as jnp
 import numpy as np
 import pysindy as ps
 from sklearn.utils import Bunch
 
+from sk_offwhite.datasets._backlash import SERVO_KINDS, servo_rhs
 from sk_offwhite.datasets._common import _SimpleSystem
 from sk_offwhite.datasets._mechanical import _generate, _Generator, _second_order_physics
 
@@ -20,12 +20,6 @@ __all__ = ["make_clearance_coupling"]
 
 COUPLING_THETA = {"k": 400.0, "c": 8.0}
 COUPLING_GAP, COUPLING_DT = 0.05, 0.005
-COUPLING_KINDS = {"states": ("angle", "rate"), "inputs": ("angle",)}
-
-
-def coupling_rhs(x, u, theta):
-    """``[omega, k (u - theta) - c omega]``: the load pulled towards the drive's angle."""
-    return jnp.stack([x[1], theta["k"] * (u[0] - x[0]) - theta["c"] * x[1]])
 
 
 def _clearance_effect(x, u, k, gap, dt):
@@ -38,7 +32,7 @@ def _clearance_effect(x, u, k, gap, dt):
 
 def _coupling_physics(values: dict, x0):
     names = ("theta", "omega", "u")
-    return _second_order_physics(coupling_rhs, values, x0, COUPLING_DT, names, COUPLING_KINDS)
+    return _second_order_physics(servo_rhs, values, x0, COUPLING_DT, names, SERVO_KINDS)
 
 
 def _coupling_library():
@@ -68,7 +62,7 @@ _CLEARANCE = _Generator(
     band=0.01,
     noise_std=5e-3,
     rates={"gap": COUPLING_GAP, "k": COUPLING_THETA["k"]},
-    kinds=COUPLING_KINDS,
+    kinds=SERVO_KINDS,
 )
 
 

@@ -134,8 +134,7 @@ def _gains(hypothesis, states, names) -> list[Candidate]:
 def _fitted_start(effect: Effect, hypothesis: Hypothesis, states, u, dt: float):
     """``effect`` with its linear (first) parameter at the least-squares fit of its term to
     the hypothesis' correction (per unit time); unchanged when that fit has no finite
-    value or lies outside the parameter's bounds. Effects are rebuilt from their
-    attributes, which are their constructor's arguments."""
+    value or lies outside the parameter's bounds."""
     basis = effect.basis(states, u) if hasattr(effect, "basis") else None
     if basis is None or hypothesis.correction is None:
         return effect
@@ -149,7 +148,7 @@ def _fitted_start(effect: Effect, hypothesis: Hypothesis, states, u, dt: float):
     if (lower is not None and value <= lower) or (upper is not None and value >= upper):
         return effect  # the correction points the other way: keep the default start
     field = name[len(effect.name) + 1 :]
-    return type(effect)(**{**vars(effect), field: value})
+    return effect.replace(**{field: value})
 
 
 def _one_signed(column: np.ndarray) -> bool:
