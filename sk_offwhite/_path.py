@@ -16,6 +16,7 @@ import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
+from joblib import effective_n_jobs
 from sklearn.base import clone
 from sklearn.model_selection import KFold, check_cv
 
@@ -72,7 +73,9 @@ class GammaPath:
         RMS simulation error of each fold's held-out block (initial state estimated from
         its first ``init_window`` samples, which are not scored), in output standard
         deviations; ``inf`` where the simulation diverged, and (``stop_at_divergence``)
-        at every smaller :math:`\gamma` of that fold, which is not fitted.
+        at every smaller :math:`\gamma` of that fold and every fold's after the first
+        :math:`\gamma` at which one diverged (unless that is the grid's first), which are
+        not fitted.
     best_index : int or None
         The chosen :math:`\gamma` (``None`` without ``cv``).
     feature_names : list of str
@@ -181,29 +184,81 @@ def _fold_errors(
     ends as the whole record's does (:func:`_changes`); the :math:`\gamma` after its end
     keep its last model's errors. With ``stop_at_divergence`` it also ends at its first
     ``inf`` (a failed fit or a diverged held-out simulation), the rest ``inf`` unfitted."""
-    errors, last, previous = [], None, None
-    for gamma in gammas:
-        if stop_at_divergence and errors and not np.all(np.isfinite(errors[-1])):
-            errors.append(np.array([np.inf, np.inf]))
-            continue
-        if previous is None and last is not None:  # the fold's path has ended
-            errors.append(last)
-            continue
+    fold = _FoldPath(est, u, z, train, test, init_window, min_improvement, stop_at_divergence)
+    return np.asarray([fold.step(gamma) for gamma in gammas])
+
+
+class _FoldPath:
+    r"""One fold's path, a :math:`\gamma` at a time (:meth:`step`), so that the folds can
+    advance together (:func:`_folds_together`); arguments as :func:`_fold_errors`."""
+
+    def __init__(self, est, u, z, train, test, init_window, min_improvement, stop):
+        self.est, self.u, self.z, self.train, self.test = est, u, z, train, test
+        self.init_window, self.min_improvement, self.stop = init_window, min_improvement, stop
+        self.errors = self.last = self.previous = None
+
+    def step(self, gamma: float) -> np.ndarray:
+        """The held-out errors at ``gamma`` (the next, smaller value of the grid)."""
+        if self.stop and self.errors is not None and not np.all(np.isfinite(self.errors)):
+            self.errors = np.array([np.inf, np.inf])
+        elif self.previous is None and self.last is not None:  # the fold's path has ended
+            self.errors = self.last
+        else:
+            self.errors = self._fit(gamma)
+        return self.errors
+
+    def _fit(self, gamma: float) -> np.ndarray:
+        est = self.est.set_params(gamma=gamma)
         try:
-            est.set_params(gamma=gamma).fit(u[train], z[train], sample_index=train)
+            est.fit(self.u[self.train], self.z[self.train], sample_index=self.train)
         except ValueError as error:
             message = f"fit_gamma_path: a fold's fit at gamma={gamma:.3g} failed ({error})"
-            warnings.warn(message, stacklevel=2)
-            errors.append(np.array([np.inf, np.inf]))
-            continue
-        if last is not None and not _changes(est.fit_error_, previous, min_improvement):
-            errors.append(last)
-            previous = None
-            continue
-        scores = [_block_errors(est, u, z, block, init_window) for block in _blocks(test)]
-        last, previous = np.sqrt(np.mean(np.square(scores), axis=0)), est.fit_error_
-        errors.append(last)
-    return np.asarray(errors)
+            warnings.warn(message, stacklevel=4)
+            return np.array([np.inf, np.inf])
+        if self.last is not None and not _changes(
+            est.fit_error_, self.previous, self.min_improvement
+        ):
+            self.previous = None
+            return self.last
+        blocks = _blocks(self.test)
+        scores = [_block_errors(est, self.u, self.z, b, self.init_window) for b in blocks]
+        self.last, self.previous = np.sqrt(np.mean(np.square(scores), axis=0)), est.fit_error_
+        return self.last
+
+
+def _folds_together(arguments, stop_at_divergence: bool) -> np.ndarray:
+    r"""Every fold's :func:`_fold_errors` (``arguments``: one tuple of its arguments per
+    fold), shape ``(n_folds, n_gammas, 2)``, the folds advanced together one
+    :math:`\gamma` at a time. With ``stop_at_divergence`` none is fitted after
+    :func:`_divergence` (:func:`_choose` cannot choose there): those errors are ``inf``."""
+    gammas = arguments[0][5]
+    folds = [_FoldPath(*args[:5], *args[6:8], stop_at_divergence) for args in arguments]
+    errors = np.full((len(folds), len(gammas), 2), np.inf)
+    for k, gamma in enumerate(gammas):
+        errors[:, k] = [fold.step(gamma) for fold in folds]
+        if stop_at_divergence and _divergence(errors[:, : k + 1]) is not None:
+            break
+    return errors
+
+
+def _divergence(errors: np.ndarray) -> int | None:
+    r"""Index of the first :math:`\gamma` at which a fold's error is not finite (``errors``
+    of shape ``(n_folds, n_gammas, 2)``), when every fold's first is finite; ``None``
+    otherwise. With ``stop_at_divergence`` :func:`_choose` chooses before it."""
+    finite = np.all(np.isfinite(errors[..., 0]), axis=0)
+    if not finite[0] or np.all(finite):
+        return None
+    return int(np.flatnonzero(~finite)[0])
+
+
+def _cut_at_divergence(errors: np.ndarray) -> np.ndarray:
+    """``errors`` (as :func:`_folds_together`'s) ``inf`` after :func:`_divergence`: folds
+    fitted apart report what folds fitted together do."""
+    index = _divergence(errors)
+    if index is not None:
+        errors = errors.copy()
+        errors[:, index + 1 :] = np.inf
+    return errors
 
 
 def _changes(fit_error: float, previous: float, min_improvement: float) -> bool:
@@ -404,7 +459,9 @@ def fit_gamma_path(
     stop_at_divergence : bool, default=True
         Choose only among the :math:`\gamma` before the first one whose mean CV error is
         not finite (a fold's held-out simulation diverged, or a fold's or the whole
-        record's fit failed), and fit no fold below its own first divergence. There the
+        record's fit failed), and fit no fold below its own first divergence, nor any
+        below the first :math:`\gamma` at which one diverged (when each fold's first
+        :math:`\gamma` is finite; their errors there are ``inf``). There the
         penalty no longer keeps the correction stable off the data it was fitted on, and
         a smaller :math:`\gamma` only loosens it further: a finite CV error below that
         point is the luck of where each fold's fit stopped (measured on the Cascaded Tanks
@@ -430,7 +487,7 @@ def fit_gamma_path(
         values, gamma_max = gamma_grid(estimator.gamma_max_, n_gammas, eps), estimator.gamma_max_
     else:
         values, gamma_max = _check_gammas(gammas), np.nan
-    cv_error = cv_rmse = jobs = None
+    cv_error = cv_rmse = jobs = folds = None
     if cv is not None:
         template, window = clone(estimator), _init_window(estimator, init_window, len(u_arr))
         splits = _splits(cv, len(u_arr))
@@ -438,7 +495,10 @@ def fit_gamma_path(
         arguments = [
             (clone(template), u_arr, z_arr, train, test, *shared) for train, test in splits
         ]
-        jobs = launch(_fold_errors, arguments, n_jobs)
+        if effective_n_jobs(n_jobs) == 1:
+            folds = _folds_together(arguments, stop_at_divergence)
+        else:
+            jobs = launch(_fold_errors, arguments, n_jobs)
     warm_start = estimator.warm_start
     try:
         snapshots, train_error = _whole_record_path(
@@ -448,8 +508,10 @@ def fit_gamma_path(
         estimator.set_params(warm_start=warm_start)
     values = values[: len(snapshots)]
     if jobs is not None:
-        folds = gather(jobs)
-        cv_error, cv_rmse = np.moveaxis(np.stack(folds, axis=1), -1, 0)[:, : len(values)]
+        folds = np.stack(gather(jobs))
+        folds = _cut_at_divergence(folds) if stop_at_divergence else folds
+    if folds is not None:
+        cv_error, cv_rmse = np.moveaxis(folds, (2, 0), (0, 2))[:, : len(values)]
     failed = np.array([snap is None for snap in snapshots])
     if cv_error is not None:
         cv_error[failed], cv_rmse[failed] = np.inf, np.inf

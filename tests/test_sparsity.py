@@ -17,7 +17,14 @@ from sklearn.model_selection import KFold, cross_val_score
 
 from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel, fit_gamma_path, gamma_grid
 from sk_offwhite._optim import SolverResult
-from sk_offwhite._path import _better_start, _choose, _fold_errors, penalised_objective
+from sk_offwhite._path import (
+    _better_start,
+    _choose,
+    _cut_at_divergence,
+    _fold_errors,
+    _folds_together,
+    penalised_objective,
+)
 from sk_offwhite._sparsity import _no_worse_than, _Stage
 from sk_offwhite.loop import held_out_rmse
 
@@ -304,6 +311,43 @@ def test_a_fold_fits_nothing_below_its_first_divergence():
         errors = _fold_errors(est, u, z, np.arange(20), np.arange(20, 40), gammas, 0, 0.0, True)
     np.testing.assert_allclose(errors[:, 0], [1e-1, 1e-2, np.inf, np.inf, np.inf])
     assert est.n_fits == 3
+
+
+class _UnstableBelow(_Plateau):
+    """A stand-in whose held-out simulation diverges below ``limit``."""
+
+    def __init__(self, limit):
+        self.limit = limit
+
+    def predict(self, u, z_init=None):
+        return np.full((len(u), 1), self.gamma if self.gamma >= self.limit else np.nan)
+
+
+def _fold_arguments(estimators, gammas):
+    u, z = np.zeros((40, 1)), np.zeros((40, 1))
+    train, test = np.arange(20), np.arange(20, 40)
+    return [(est, u, z, train, test, gammas, 0, 0.0) for est in estimators]
+
+
+@pytest.mark.parametrize(
+    "limits, fitted, cut",
+    [((1e-2, 0.0), (3, 3), 2), ((1.0, 1e-3), (1, 4), None)],
+    ids=["one diverges later", "one diverges at the first gamma"],
+)
+def test_the_folds_stop_together_where_the_choice_stops(limits, fitted, cut):
+    gammas = [1e-1, 1e-2, 1e-3, 1e-4, 1e-5]
+    together = [_UnstableBelow(limit) for limit in limits]
+    apart = [_UnstableBelow(limit) for limit in limits]
+    with np.errstate(invalid="ignore"):
+        errors = _folds_together(_fold_arguments(together, gammas), True)
+        separate = np.stack([_fold_errors(*args, True) for args in _fold_arguments(apart, gammas)])
+    assert tuple(est.n_fits for est in together) == fitted
+    if cut is not None:  # nothing after the first diverged gamma, in either fold
+        assert np.all(np.isinf(errors[:, cut + 1 :])) and np.all(np.isfinite(errors[1, :cut]))
+    # folds fitted apart (in worker processes) report the same once cut
+    np.testing.assert_array_equal(_cut_at_divergence(separate), errors)
+    if cut is not None:
+        assert _choose(errors[..., 0].T, np.asarray(gammas), False, True) < cut
 
 
 def test_the_chosen_fit_is_the_better_of_two_starts(path):
