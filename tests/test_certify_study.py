@@ -203,6 +203,7 @@ def _made_up_run(seed, certified, theta, fps=0.4, sfps=0.07, alone=None):
         "b sqrt(T)": verdict,
         "refined": {"certified": True, "mu": 0.0013},
         "b sqrt(T), n = 2M": {"certified": certified, "mu": 0.00224},
+        "b sqrt(T), (11)'s vertex": {"certified": False, "mu": 0.00224},
         "theta_hat": theta,
         "fit_support_exact": True,
         "exact_sets": {"FPS": fps, "SFPS": sfps},
@@ -214,7 +215,7 @@ def test_sweep_tables_count_and_hull_the_right_runs(tmp_path):
     thetas = [[2.0, -1.0, -1.0, 3.7], [2.0, -1.0, -1.0, 3.7 + 3.0], [2.0 + 4.0, -1.0, -1.0, 3.7]]
     runs = [_made_up_run(0, True, thetas[0]), _made_up_run(1, True, thetas[1]),
             _made_up_run(2, False, thetas[2], fps=0.6)]  # fmt: skip
-    assert "| 5e-05 | 2/3 | 3/3 | 2/3 | 3/3 |" in sweep.table(runs, [5e-5])
+    assert "| 5e-05 | 2/3 | 3/3 | 2/3 | 0/3 | 3/3 |" in sweep.table(runs, [5e-5])
     hulls = sweep.hull_table(runs, [5e-5]).splitlines()
     # FPS over the three estimates (sides 3, 4, 5): worst-case errors 4, 5, 5; SFPS over the
     # two certified: 3, 3

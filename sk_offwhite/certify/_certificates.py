@@ -87,6 +87,7 @@ from ._relaxation import (
     solve_status,
     unit_norm_problem,
 )
+from ._vertex import search_vertex
 
 __all__ = [
     "SparsityCertificate",
@@ -279,7 +280,9 @@ class SparsityCertificate:
         :math:`\tau` of (13) (``inf`` when :math:`\sigma^2_{2M} = 0`; ``nan`` without
         :math:`\omega^v`).
     margin : float
-        :math:`\eta(\hat\omega) - \tau` (positive when certified).
+        :math:`\eta(\hat\omega) - \tau` at (11)'s solution, :math:`\min_{i \in S}
+        \mathrm{sign}(\hat\omega_i)\omega^v_i - \tau` at a searched vertex (positive when
+        certified).
     theorem2_bound : float
         Theorem 2's :math:`\|\omega' - \hat\omega\|_\infty` bound, computed at :math:`\hat\omega`.
     kappa_bar : int or None
@@ -311,6 +314,13 @@ class SparsityCertificate:
     vertex_size : int or None
         :math:`\|\omega^v\|_0` (kept columns; terms above :math:`10^{-6}` of the largest
         contribution :math:`|\omega^v_j|\,\|\varphi_j\|_2`).
+    vertex : {'l1', 'searched'}
+        Which :math:`\omega^v` the verdict rests on: (11)'s :math:`\ell_1` minimiser (the
+        paper's), or the vertex :func:`~sk_offwhite.certify._vertex.search_vertex` found when
+        the test failed there (``vertex='search'``); ``omega_v``, ``threshold``, ``margin``,
+        ``lambda_set``, ``kappa_bar``, ``sigma2`` and the level are that vertex's.
+    l1_threshold : float
+        :math:`\tau` at (11)'s solution, whichever vertex the verdict rests on.
     diagnosis : SparsityDiagnosis or None
         Why the verdict is what it is: the residual of :math:`\hat\omega` against
         :math:`\mu`, :math:`\|\Upsilon_0\Phi\hat\omega\|_2`, the sparsest feasible
@@ -339,6 +349,8 @@ class SparsityCertificate:
     diagnosis: SparsityDiagnosis | None = field(default=None)
     sparsity_level: int = field(default=0)
     vertex_size: int | None = field(default=None)
+    vertex: str = field(default="l1")
+    l1_threshold: float = field(default=float("nan"))
 
     def explain(self) -> str:
         """One sentence: why certified, or why not (a sparser feasible support, an
@@ -379,8 +391,9 @@ def _check_omega_hat(omega_hat, m: int) -> np.ndarray:
     return omega_hat
 
 
-def _verdict(threshold, eta, checks: dict) -> tuple[bool, str]:
-    """Condition (13) after the hypotheses it rests on (``checks``: name -> holds)."""
+def _verdict(threshold, eta, checks: dict, compared: str = "eta(omega_hat)") -> tuple[bool, str]:
+    """Condition (13) after the hypotheses it rests on (``checks``: name -> holds);
+    ``eta`` is the value :math:`\tau` is compared with, named ``compared``."""
     if not checks["feasible"]:
         return (
             False,
@@ -395,8 +408,8 @@ def _verdict(threshold, eta, checks: dict) -> tuple[bool, str]:
     if not checks["lambda_in_support"]:
         return False, "|omega^v_i| > tau off supp(omega_hat): a term outside the support is needed"
     if threshold < eta:
-        return True, f"tau = {threshold:.4g} < eta(omega_hat) = {eta:.4g} (condition 13)"
-    return False, f"tau = {threshold:.4g} >= eta(omega_hat) = {eta:.4g} (condition 13 fails)"
+        return True, f"tau = {threshold:.4g} < {compared} = {eta:.4g} (condition 13)"
+    return False, f"tau = {threshold:.4g} >= {compared} = {eta:.4g} (condition 13 fails)"
 
 
 def certify_problem(
@@ -408,11 +421,14 @@ def certify_problem(
     normalize_columns: bool = False,
     diagnose: bool = True,
     level: str = "vertex",
+    vertex: str = "search",
 ) -> SparsityCertificate:
     """:func:`certify_sparsity` on an already validated :class:`LinearProblem`."""
     omega_hat = _check_omega_hat(omega_hat, problem.n_features)
     sparsity_level(1, 0, level)  # validates ``level`` before any solve
-    options = dict(max_subsets=max_subsets, active_rtol=active_rtol, level=level)
+    if vertex not in ("search", "l1"):
+        raise ValueError(f"vertex must be 'search' or 'l1', got {vertex!r}.")
+    options = dict(max_subsets=max_subsets, active_rtol=active_rtol, level=level, vertex=vertex)
     if normalize_columns:
         scaled, scales = unit_norm_problem(problem)
         certificate = certify_problem(scaled, omega_hat * scales, diagnose=diagnose, **options)
@@ -432,8 +448,10 @@ def _test_problem(
     max_subsets: int,
     active_rtol: float,
     level: str = "vertex",
+    vertex: str = "search",
 ) -> SparsityCertificate:
-    """Theorem 3's test (11)-(13) on ``problem`` for a validated ``omega_hat``."""
+    """Theorem 3's test (11)-(13) on ``problem`` for a validated ``omega_hat``: at (11)'s
+    solution, then (``vertex='search'``, when that fails) at the searched vertex."""
     support = omega_hat != 0
     m_support = int(support.sum())
     eta = float(np.min(np.abs(omega_hat[support])))
@@ -447,20 +465,54 @@ def _test_problem(
     if omega_v is None:
         reason = f"program (11) not solved: cvxpy status '{status}'"
         return _certificate(None, reason, common)
-    vertex_size = vertex_support_size(problem, omega_v, geometry.kept)
-    geometry = _at_level(geometry, sparsity_level(m_support, vertex_size, level), max_subsets)
-    common.update(sigma2=geometry.sigma2, sigma2_exact=geometry.sigma2_exact)
-    common.update(sparsity_level=geometry.n_sparse, vertex_size=vertex_size)
-    tau = support_threshold(problem, geometry, omega_v)
-    active = _residual_norm(problem, omega_v) >= problem.mu * (1 - active_rtol)
-    lam = np.abs(omega_v) > tau
-    checks = dict(active=active, lambda_in_support=not np.any(lam & ~support))
-    checks["feasible"] = _residual_norm(problem, omega_hat) <= problem.mu * (1 + active_rtol)
+    checks = dict(feasible=_residual_norm(problem, omega_hat) <= problem.mu * (1 + active_rtol))
     checks["confounded"] = bool(np.any(support & ~geometry.kept))
-    ok, reason = _verdict(tau, eta, checks)
-    vertex = dict(threshold=tau, margin=eta - tau, constraint_active=active, omega_v=omega_v)
-    vertex.update(lambda_set=lam, kappa_bar=int(support.sum() - lam.sum()))
-    return _certificate(ok, reason, {**common, **vertex})
+    rules = dict(level=level, max_subsets=max_subsets)
+    active = _residual_norm(problem, omega_v) >= problem.mu * (1 - active_rtol)
+    l1 = _at_vertex(problem, geometry, omega_v, support, dict(checks, active=active), eta, rules)
+    common.update(l1_threshold=l1["threshold"])
+    if l1["certified"] or vertex == "l1" or not checks["feasible"] or checks["confounded"]:
+        return _certificate(l1.pop("certified"), l1.pop("reason"), {**common, **l1})
+    searched = _searched(problem, geometry, omega_hat, omega_v, checks, rules)
+    chosen = searched if searched is not None and searched["certified"] else l1
+    return _certificate(chosen.pop("certified"), chosen.pop("reason"), {**common, **chosen})
+
+
+def _at_vertex(
+    problem, geometry, omega_v, support, checks, compared, rules, searched=False
+) -> dict:
+    r"""Condition (13) at ``omega_v``: :math:`\tau` at the level of ``rules``, compared with
+    ``compared`` (:math:`\eta(\hat\omega)` at (11)'s solution); the certificate's fields."""
+    vertex_size = vertex_support_size(problem, omega_v, geometry.kept)
+    level = sparsity_level(int(support.sum()), vertex_size, rules["level"])
+    geometry = _at_level(geometry, level, rules["max_subsets"])
+    tau = support_threshold(problem, geometry, omega_v)
+    lam = np.abs(omega_v) > tau
+    checks = dict(checks, lambda_in_support=not np.any(lam & ~support))
+    name = "min_S sign(omega_hat_i) omega^v_i" if searched else "eta(omega_hat)"
+    ok, reason = _verdict(tau, compared, checks, name)
+    values = dict(threshold=tau, margin=compared - tau, constraint_active=checks["active"])
+    values.update(omega_v=omega_v, lambda_set=lam, kappa_bar=int(support.sum() - lam.sum()))
+    values.update(sigma2=geometry.sigma2, sigma2_exact=geometry.sigma2_exact)
+    values.update(sparsity_level=geometry.n_sparse, vertex_size=vertex_size)
+    values.update(vertex="searched" if searched else "l1", certified=ok, reason=reason)
+    return values
+
+
+def _searched(problem, geometry, omega_hat, omega_v, checks, rules) -> dict | None:
+    r""":func:`_at_vertex` at the vertex :func:`~._vertex.search_vertex` finds from
+    ``omega_v`` (``None`` when it finds none): its residual must reach :math:`\mu`
+    without tolerance, and :math:`\tau` is compared with its own smallest signed support entry."""
+    projected_y = project_out(problem.phi_theta, problem.y[:, None])[:, 0]
+    args = (geometry.projected, projected_y, problem.mu, geometry.kept, omega_hat, omega_v)
+    found = search_vertex(*args)
+    if found is None:
+        return None
+    support = omega_hat != 0
+    lowest = float(np.min(np.sign(omega_hat[support]) * found[support]))
+    active = _residual_norm(problem, found) >= problem.mu
+    checks = dict(checks, active=active)
+    return _at_vertex(problem, geometry, found, support, checks, lowest, rules, searched=True)
 
 
 def _certificate(certified, reason: str, values: dict) -> SparsityCertificate:
@@ -482,6 +534,7 @@ def certify_sparsity(
     normalize_columns: bool = False,
     diagnose: bool = True,
     level: str = "vertex",
+    vertex: str = "search",
     theta_names=None,
     feature_names=None,
 ) -> SparsityCertificate:
@@ -524,6 +577,13 @@ def certify_sparsity(
         ``'2M'``: the paper's literal :math:`\min(2M, m')`, valid when
         :math:`\|\omega^v\|_0 \le M`. Theorem 2's bound at :math:`\hat\omega`
         (``theorem2_bound``) always uses :math:`2M`.
+    vertex : {'search', 'l1'}, default='search'
+        ``'l1'``: the paper's test, at (11)'s :math:`\ell_1` minimiser :math:`\omega^v`.
+        ``'search'``: where that test fails, also at the vertex with the largest margin a
+        convex-concave search reaches from it (:mod:`~sk_offwhite.certify._vertex`; every
+        vertex with :math:`\|e^*(\omega^v)\|_2 \ge \mu` is valid in Theorem 3's proof,
+        which never uses the :math:`\ell_1` optimality). A sufficient test either way:
+        ``'search'`` certifies whatever ``'l1'`` does, and more.
     theta_names, feature_names : sequence of str, optional
         Names for the summary.
 
@@ -542,5 +602,5 @@ def certify_sparsity(
         phi_theta, phi, y, mu, theta_names=theta_names, feature_names=feature_names
     )
     options = dict(max_subsets=max_subsets, active_rtol=active_rtol, diagnose=diagnose)
-    options.update(level=level)
+    options.update(level=level, vertex=vertex)
     return certify_problem(problem, omega_hat, normalize_columns=normalize_columns, **options)

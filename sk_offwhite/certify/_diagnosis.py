@@ -167,6 +167,14 @@ class SparsityDiagnosis:
         The certificate's reason.
     sparsity_level : int
         The level :math:`n` of :math:`\sigma^2_n` (``sigma2``) used by :math:`\tau`.
+    vertex : {'l1', 'searched'}
+        The certificate's vertex (see :class:`~sk_offwhite.certify.SparsityCertificate`).
+    compared : float
+        What :math:`\tau` was compared with: :math:`\eta(\hat\omega)` at (11)'s
+        solution, :math:`\min_{i \in S}\mathrm{sign}(\hat\omega_i)\omega^v_i` at a
+        searched vertex.
+    l1_ratio : float
+        :math:`\tau/\eta(\hat\omega)` at (11)'s solution (``nan`` when not computed).
     """
 
     support_size: int
@@ -183,6 +191,9 @@ class SparsityDiagnosis:
     certified: bool | None
     reason: str
     sparsity_level: int = 0
+    vertex: str = "l1"
+    compared: float = float("nan")
+    l1_ratio: float = float("nan")
 
     @property
     def sparser_exists(self) -> bool:
@@ -238,8 +249,15 @@ def _conservative(d: SparsityDiagnosis) -> str:
 
 
 def _certified(d: SparsityDiagnosis) -> str:
-    return (
-        f"certified: tau = {d.tau:.3g} < eta = {d.eta:.3g} (tau/eta = {d.tau / d.eta:.3g}, "
+    if d.vertex == "searched":
+        head = (
+            f"certified at a searched vertex omega^v (||e*(omega^v)|| >= mu): tau = "
+            f"{d.tau:.3g} < min_S sign(omega_hat_i) omega^v_i = {d.compared:.3g} "
+            f"(at (11)'s l1 solution tau/eta was {d.l1_ratio:.3g}; "
+        )
+    else:
+        head = f"certified: tau = {d.tau:.3g} < eta = {d.eta:.3g} (tau/eta = {d.tau / d.eta:.3g}, "
+    return head + (
         f"sigma^2_n = {d.sigma2:.3g}, n = {d.sparsity_level}); no support with fewer than "
         f"{d.support_size} terms "
         f"fits within mu = {d.mu:.3g} (best residual {d.sparser_residual:.3g})."
@@ -298,4 +316,6 @@ def diagnose(
         size, problem.mu, float(residual), float(physics), float(unexplained), names,
         float(best), exhaustive, certificate.sigma2, certificate.threshold, certificate.eta,
         certificate.certified, certificate.reason, certificate.sparsity_level,
+        certificate.vertex, certificate.threshold + certificate.margin,
+        certificate.l1_threshold / certificate.eta,
     )  # fmt: skip

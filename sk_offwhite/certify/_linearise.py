@@ -319,10 +319,12 @@ def certify_estimator(
     linearisation : Linearisation, optional
         Reuse a linearisation computed before.
     **options
-        ``max_subsets``, ``active_rtol``, ``normalize_columns``, ``diagnose``, ``level``
+        ``max_subsets``, ``active_rtol``, ``normalize_columns``, ``diagnose``, ``level``,
+        ``vertex``
         of :func:`~sk_offwhite.certify.certify_sparsity` (``level='vertex'``, the default:
         :math:`\sigma^2_n` at :math:`n = \min(\|\omega^v\|_0 + M, m')`; ``'2M'``: the
-        paper's literal level).
+        paper's literal level; ``vertex='search'``, the default: where the test fails at
+        (11)'s solution, also at a searched vertex; ``'l1'``: the paper's vertex only).
 
     Returns
     -------
