@@ -110,16 +110,21 @@ def _step_program(gram: _Gram, start: np.ndarray):
 
 
 def _climb(gram: _Gram, start: np.ndarray, mu: float) -> np.ndarray:
-    """Convex-concave steps from ``start`` while the surrogate margin rises."""
+    r"""Convex-concave steps from ``start`` while the surrogate margin rises; ``start``
+    itself when no step was taken. The first step is kept whatever its margin: ``start``
+    meets :math:`\|e\|_2 \ge \mu` only to the tolerance of (11)'s solver, every step
+    exactly."""
+    if not np.any(gram.inner - gram.gram @ start):
+        return start  # e is orthogonal to every column: tau = 0 at start already
     problem, omega, normal, offset = _step_program(gram, start)
-    best, best_margin = start, _surrogate_margin(gram, start)
+    best, best_margin = start, -np.inf
     for _ in range(MAX_STEPS):
         normal.value, offset.value = _half_space(gram, best, mu)
         if solve_status(problem) != cp.OPTIMAL:
             break
         candidate = np.asarray(omega.value, float)
         margin = _surrogate_margin(gram, candidate)
-        if not margin > best_margin + STEP_RTOL * abs(best_margin):
+        if np.isfinite(best_margin) and not margin > best_margin + STEP_RTOL * abs(best_margin):
             break
         best, best_margin = candidate, margin
     return best
