@@ -474,8 +474,13 @@ def _test_problem(
     if l1["certified"] or vertex == "l1" or not checks["feasible"] or checks["confounded"]:
         return _certificate(l1.pop("certified"), l1.pop("reason"), {**common, **l1})
     searched = _searched(problem, geometry, omega_hat, omega_v, checks, rules)
-    chosen = searched if searched is not None and searched["certified"] else l1
-    return _certificate(chosen.pop("certified"), chosen.pop("reason"), {**common, **chosen})
+    if searched is not None and searched["certified"]:
+        return _certificate(
+            searched.pop("certified"), searched.pop("reason"), {**common, **searched}
+        )
+    tried = "no better vertex" if searched is None else f"{searched['reason']}"
+    reason = f"{l1.pop('reason')}; the vertex search: {tried}"
+    return _certificate(l1.pop("certified"), reason, {**common, **l1})
 
 
 def _at_vertex(
