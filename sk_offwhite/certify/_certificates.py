@@ -487,8 +487,11 @@ def _at_vertex(
     problem, geometry, omega_v, support, checks, compared, rules, searched=False
 ) -> dict:
     r"""Condition (13) at ``omega_v``: :math:`\tau` at the level of ``rules``, compared with
-    ``compared`` (:math:`\eta(\hat\omega)` at (11)'s solution); the certificate's fields."""
-    vertex_size = vertex_support_size(problem, omega_v, geometry.kept)
+    ``compared`` (:math:`\eta(\hat\omega)` at (11)'s solution); the certificate's fields.
+    A searched vertex's non-zeros are counted exactly (no tolerance): its level is then
+    rigorous whatever the solver's round-off."""
+    rtol = 0.0 if searched else 1e-6
+    vertex_size = vertex_support_size(problem, omega_v, geometry.kept, rtol)
     level = sparsity_level(int(support.sum()), vertex_size, rules["level"])
     geometry = _at_level(geometry, level, rules["max_subsets"])
     tau = support_threshold(problem, geometry, omega_v)
