@@ -196,20 +196,24 @@ def sparsity_vertex(problem: LinearProblem, omega_hat: np.ndarray) -> tuple[str,
 
 @dataclass(frozen=True)
 class _Geometry:
-    """Projected dictionary quantities shared by Theorems 2 and 3."""
+    r"""Projected dictionary quantities shared by Theorems 2 and 3 (``projected_y``:
+    :math:`\Upsilon_0 y`, which the vertex search starts from)."""
 
     projected: np.ndarray
     kept: np.ndarray
     sigma2: float
     sigma2_exact: bool
     n_sparse: int
+    projected_y: np.ndarray
 
 
 def _geometry(problem: LinearProblem, level: int, max_subsets: int) -> _Geometry:
     """Projected dictionary, kept columns and :math:`\\sigma^2_n` at ``n = min(level, m')``."""
     projected = project_out(problem.phi_theta, problem.phi)
+    projected_y = project_out(problem.phi_theta, problem.y[:, None])[:, 0]
     kept = ~confounded_columns(problem.phi, projected)
-    return _at_level(_Geometry(projected, kept, np.nan, True, 0), level, max_subsets)
+    geometry = _Geometry(projected, kept, np.nan, True, 0, projected_y)
+    return _at_level(geometry, level, max_subsets)
 
 
 def _at_level(geometry: _Geometry, level: int, max_subsets: int) -> _Geometry:
@@ -391,9 +395,9 @@ def _check_omega_hat(omega_hat, m: int) -> np.ndarray:
     return omega_hat
 
 
-def _verdict(threshold, eta, checks: dict, compared: str = "eta(omega_hat)") -> tuple[bool, str]:
-    """Condition (13) after the hypotheses it rests on (``checks``: name -> holds);
-    ``eta`` is the value :math:`\tau` is compared with, named ``compared``."""
+def _verdict(threshold, bound, checks: dict, bound_name: str) -> tuple[bool, str]:
+    r"""Condition (13) after the hypotheses it rests on (``checks``: name -> holds):
+    ``threshold`` :math:`\tau` below ``bound``, named ``bound_name``."""
     if not checks["feasible"]:
         return (
             False,
@@ -407,9 +411,9 @@ def _verdict(threshold, eta, checks: dict, compared: str = "eta(omega_hat)") -> 
         return False, "sigma^2_n is 0: some n projected columns are linearly dependent"
     if not checks["lambda_in_support"]:
         return False, "|omega^v_i| > tau off supp(omega_hat): a term outside the support is needed"
-    if threshold < eta:
-        return True, f"tau = {threshold:.4g} < {compared} = {eta:.4g} (condition 13)"
-    return False, f"tau = {threshold:.4g} >= {compared} = {eta:.4g} (condition 13 fails)"
+    if threshold < bound:
+        return True, f"tau = {threshold:.4g} < {bound_name} = {bound:.4g} (condition 13)"
+    return False, f"tau = {threshold:.4g} >= {bound_name} = {bound:.4g} (condition 13 fails)"
 
 
 def certify_problem(
@@ -478,7 +482,7 @@ def _test_problem(
         return _certificate(
             searched.pop("certified"), searched.pop("reason"), {**common, **searched}
         )
-    tried = "no better vertex" if searched is None else f"{searched['reason']}"
+    tried = "no better vertex" if searched is None else searched["reason"]
     reason = f"{l1.pop('reason')}; the vertex search: {tried}"
     return _certificate(l1.pop("certified"), reason, {**common, **l1})
 
@@ -511,9 +515,9 @@ def _searched(problem, geometry, omega_hat, omega_v, checks, rules) -> dict | No
     r""":func:`_at_vertex` at the vertex :func:`~._vertex.search_vertex` finds from
     ``omega_v`` (``None`` when it finds none): its residual must reach :math:`\mu`
     without tolerance, and :math:`\tau` is compared with its own smallest signed support entry."""
-    projected_y = project_out(problem.phi_theta, problem.y[:, None])[:, 0]
-    args = (geometry.projected, projected_y, problem.mu, geometry.kept, omega_hat, omega_v)
-    found = search_vertex(*args)
+    found = search_vertex(
+        geometry.projected, geometry.projected_y, problem.mu, geometry.kept, omega_hat, omega_v
+    )
     if found is None:
         return None
     support = omega_hat != 0
