@@ -20,13 +20,13 @@ from sklearn.utils.validation import _check_feature_names, _check_sample_weight,
 from ._backend import to_device
 from ._basis import compile_basis
 from ._equations import format_equations
+from ._initial import estimate_initial_state
 from ._objective import CostWeights
 from ._optim import LM_SCALINGS
 from ._physics import PhysicsModel
 from ._problem import (
     SolverOptions,
     build_model,
-    estimate_initial_state,
     fit_records,
     initial_state_guess,
 )

@@ -151,10 +151,17 @@ ms. Tangents one at a time (``lax.map`` of ``jvp``) were slower still (2.7 and 9
 def linearised(fun, x, forward: bool = True):
     """``(fun(x), Jacobian of fun at x)``: forward mode (see :data:`LINEARIZE_MAX_FREE`)
     or reverse mode (``jacrev``, for problems wider than long)."""
+
+    def with_value(y):
+        value = fun(y)
+        return value, value
+
     if not forward:
-        return fun(x), jax.jacrev(fun)(x)
+        jac, value = jax.jacrev(with_value, has_aux=True)(x)
+        return value, jac
     if x.shape[0] > LINEARIZE_MAX_FREE:
-        return fun(x), jax.jacfwd(fun)(x)
+        jac, value = jax.jacfwd(with_value, has_aux=True)(x)
+        return value, jac
     value, linear = jax.linearize(fun, x)
     return value, jax.vmap(linear, out_axes=-1)(jnp.eye(x.shape[0], dtype=x.dtype))
 
@@ -244,7 +251,7 @@ def levenberg_marquardt(
 ) -> SolverResult:
     r"""Projected Levenberg-Marquardt on :math:`\|r(\cdot)\|^2` with the dense Jacobian
     (see :func:`lm_loop` for the steps and stopping rules)."""
-    forward = free0.shape[0] <= n_residuals(free0, problem, model, layout)
+    forward = forward_mode(free0, problem, model, layout)
     static = dict(model=model, layout=layout)
 
     def linearise(free):
@@ -263,6 +270,15 @@ def levenberg_marquardt(
 _residuals_program = jax.jit(free_residuals, static_argnames=("model", "layout"))
 """:func:`free_residuals` jitted, only for its shape: ``eval_shape`` traces it once per
 model, layout and array shapes and keeps the trace with the package's other programs."""
+
+
+def forward_mode(free, problem: Problem, model: Model, layout: Layout) -> bool:
+    """Whether the Jacobian is formed in forward mode: no more free variables than
+    residuals. The fit residuals alone (the leading :func:`n_fit_residuals`) settle it
+    without a trace in the usual case of a record longer than the free vector."""
+    if free.shape[0] <= n_fit_residuals(problem.segments):
+        return True
+    return free.shape[0] <= n_residuals(free, problem, model, layout)
 
 
 def n_residuals(free, problem: Problem, model: Model, layout: Layout) -> int:

@@ -28,7 +28,6 @@ from ._verdict import judged, needs_restart, with_fit_term
 __all__ = [
     "FitOutcome",
     "build_model",
-    "estimate_initial_state",
     "initial_blocks",
     "solve",
 ]
@@ -365,23 +364,3 @@ def fitted_blocks(layout, problem, result: SolverResult) -> dict:
     full = np.asarray(problem.base).copy()
     full[np.asarray(problem.free_index)] = result.free
     return layout.unflatten(full)
-
-
-def estimate_initial_state(model, blocks, u, z, x0_guess, x0_free, *, max_iter=100):
-    """Initial state that best explains ``z`` with every other block fixed (as MATLAB's
-    ``compare`` does): a small Levenberg-Marquardt problem over ``x0`` only."""
-    segments = make_segments([(u, z)], None)
-    trial = dict(blocks, x0=np.asarray(x0_guess, float).reshape(1, -1))
-    free = {k: np.zeros(np.shape(v), bool) for k, v in trial.items()}
-    free["x0"] = np.asarray(x0_free, bool).reshape(1, -1)
-    bounds = (
-        {k: np.full(np.shape(v), -np.inf) for k, v in trial.items()},
-        {k: np.full(np.shape(v), np.inf) for k, v in trial.items()},
-    )
-    layout = Layout.from_arrays(trial)
-    weights = CostWeights(0.0, 0.0, 0.0, 0.0, 1.0, output_scale=output_scale([(u, z)]))
-    problem, free0 = make_problem(layout, trial, free, bounds, segments, weights)
-    if free0.shape[0] == 0:
-        return trial["x0"][0]
-    result = levenberg_marquardt(free0, problem, model, layout, max_iter=max_iter, tol=1e-10)
-    return fitted_blocks(layout, problem, result)["x0"][0]
