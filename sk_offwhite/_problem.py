@@ -18,7 +18,7 @@ from ._layout import Layout
 from ._objective import CostWeights
 from ._optim import Problem, SolverResult, levenberg_marquardt, run_optax
 from ._physics import PhysicsModel
-from ._rollout import Model, jit_simulate
+from ._rollout import Model, free_run
 from ._segments import Segments, make_segments
 from ._sparsity import SparseOptions, fit_sparse, output_scale, state_scale
 from ._start import continuation_start, within_reach
@@ -69,7 +69,7 @@ def _window_initial_states(model, blocks, records, segments, horizon):
         if n_windows == 1:
             x0.append(start)
             continue
-        states, outputs, _ = jit_simulate(model, params, jnp.asarray(start), u)
+        states, outputs, _ = free_run(model, params, jnp.asarray(start), u)
         if within_reach(outputs, z):
             x0.extend(np.asarray(states)[::horizon][:n_windows])
         else:

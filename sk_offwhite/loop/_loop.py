@@ -52,7 +52,7 @@ from .._effects import DictionaryTerm, augment, relaxations, time_step
 from .._estimator import GreyBoxSparseRegressor
 from .._kinds import physical_kinds
 from .._optim import LM_SCALINGS
-from .._parallel import gather, launch
+from .._parallel import gather, launch, start_workers
 from .._path import GammaPath, fit_gamma_path
 from .._physics import Parameter
 from .._validation import check_record
@@ -874,8 +874,10 @@ def _delta_hypotheses(est, u, cv, declared_cv, settings, notes):
 def _fit_declared(physics, u, z, settings):
     """The declared physics fitted (multiple shooting, then whole), the physics started from
     that fit, its free run and its CV RMSE."""
+    workers = start_workers(settings.n_jobs)  # they start while this process fits
     baseline = fit_continued(_estimator(physics, settings), u, z, settings.horizon)
     start = warm_physics(physics, baseline)
+    gather(workers)
     declared_cv = cross_validated_rmse(start, u, z, settings)
     return baseline, start, baseline.simulate(u), declared_cv
 

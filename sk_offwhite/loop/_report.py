@@ -6,15 +6,11 @@ import json
 import warnings
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from ..certify import UnidentifiableWarning, identifiability  # noqa: E402
-from ._loop import analyse_model  # noqa: E402
-from ._scoring import MODEL_LABELS, _protocol_metrics  # noqa: E402
+from ..certify import UnidentifiableWarning, identifiability
+from ._loop import analyse_model
+from ._scoring import MODEL_LABELS, _protocol_metrics
 
 __all__ = ["write_report"]
 
@@ -42,8 +38,18 @@ def _json_rows(rows: list[dict]) -> list[dict]:
     ]
 
 
+def _figure(**layout):
+    """A matplotlib figure and its axes, without pyplot: no global backend or state is
+    touched, and matplotlib is imported only when a report is written (not by the worker
+    processes of the loop, which import this package)."""
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=layout.pop("figsize"))
+    return fig, fig.subplots(**layout)
+
+
 def _figure_outputs(result, u, z, path: Path, title: str) -> None:
-    fig, axes = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True)
+    fig, axes = _figure(nrows=2, ncols=1, figsize=(9, 5.5), sharex=True)
     z = np.asarray(z, float).reshape(len(u), -1)[:, 0]
     axes[0].plot(z, "k", lw=1.2, label="measured")
     for key in ("baseline", "final"):
@@ -56,7 +62,6 @@ def _figure_outputs(result, u, z, path: Path, title: str) -> None:
     axes[1].set_xlabel("sample")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def _figure_correction(result, u, path: Path) -> bool:
@@ -66,7 +71,7 @@ def _figure_correction(result, u, path: Path) -> bool:
         return False
     est = result.evidence
     run = est.simulate(u)
-    fig, axes = plt.subplots(1, len(hypotheses), figsize=(4.5 * len(hypotheses), 3.6))
+    fig, axes = _figure(nrows=1, ncols=len(hypotheses), figsize=(4.5 * len(hypotheses), 3.6))
     names = list(est.physics_.state_names) + list(est.physics_.input_names)
     signals = np.hstack([run.states, np.asarray(u, float)])
     for ax, hyp in zip(np.atleast_1d(axes), hypotheses, strict=True):
@@ -77,7 +82,6 @@ def _figure_correction(result, u, path: Path) -> bool:
         ax.set_ylabel(f"{what}, {hyp.equation} equation")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return True
 
 
