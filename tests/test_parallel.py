@@ -1,6 +1,8 @@
 """Fits in worker processes: the same numbers as in one process, warnings and failures shown."""
 
 import math
+import os
+import sys
 import warnings
 
 import numpy as np
@@ -8,7 +10,7 @@ import pysindy as ps
 import pytest
 
 from sk_offwhite import GreyBoxSparseRegressor, fit_gamma_path
-from sk_offwhite._parallel import gather, launch
+from sk_offwhite._parallel import gather, launch, start_workers
 from sk_offwhite.datasets import make_leaky_tank
 from sk_offwhite.loop import LoopSettings, close_the_loop
 from sk_offwhite.loop._loop import _attempt_all, _fold_rmse
@@ -27,6 +29,19 @@ def test_tasks_come_back_in_order_with_their_warnings_and_progress(n_jobs):
     assert values == [None] * 4
     assert [str(w.message) for w in caught] == [f"{x}: careful {k}" for k, x in enumerate("abcd")]
     assert seen == [(1, "a"), (2, "b"), (3, "c"), (4, "d")]
+
+
+def _imported_in(module: str) -> tuple[int, bool]:
+    return os.getpid(), module in sys.modules
+
+
+def test_started_workers_have_imported_the_module_and_take_the_next_tasks():
+    assert start_workers(None) == [] and start_workers(1) == []
+    module = "wave"  # imported by nothing else here
+    assert gather(start_workers(2, module=module)) == [module, module]
+    answers = gather(launch(_imported_in, [(module,)] * 4, 2))
+    assert all(imported for _, imported in answers)
+    assert os.getpid() not in {pid for pid, _ in answers}
 
 
 def test_a_failing_call_in_a_worker_is_a_line_of_the_failures_and_the_others_go_on():
