@@ -15,8 +15,8 @@ prints (and writes ``bench_speed.md`` / ``.json`` in ``--out``, default
   (+ predict, compilation included), *cold* (the two together) and *warm* (the same fit
   again in that process), min and median, with its JAX version and simulation MSE.
 * **per step** — microseconds per simulated step of what the solver runs: one
-  Levenberg-Marquardt linearisation (residual + Jacobian), one trial step (forward only),
-  and the plain forward rollout, physics only and with a 10-term dictionary, at 10³ and
+  Levenberg-Marquardt iteration (the damped step and the residual and Jacobian at its
+  candidate, one program), and the plain forward rollout, physics only and with a 10-term dictionary, at 10³ and
   10⁴ samples; min and median of interleaved repeats.
 * **grid against one fit** — ``fit_gamma_path`` over 8 values of γ with 3 contiguous
   folds, against one fit at one γ, both after a warm-up (and the first path cold).
@@ -224,23 +224,28 @@ def _timed(function, repeats: int) -> list[float]:
 
 
 def _solver_programs(model, layout, problem, free0) -> dict:
-    """Zero-argument calls of the solver's two programs and of the forward rollout."""
+    """Zero-argument calls of the solver's program (one iteration: a damped step and the
+    state at its candidate, Jacobian included) and of the forward rollout."""
     import jax
+    import numpy as np
 
-    from sk_offwhite._optim import _lm_linearise, _lm_trial, free_residuals
+    from sk_offwhite._optim import _lm_advance, free_residuals
 
-    static = dict(model=model, layout=layout)
-    state = _lm_linearise(free0, problem, forward=True, **static)
+    static = dict(model=model, layout=layout, forward=True)
+    n = free0.shape[0]
+    omega = dict(layout.blocks).get("omega", (0,))
+    start = (free0, np.zeros((n, n)), np.zeros(n), np.zeros(omega))
+    state = _lm_advance(start, 1.0, np.ones(n), False, problem, **static)[0]
+    origin = (state.free, state.jtj, state.gradient, state.anchor)
     forward = jax.jit(free_residuals, static_argnames=("model", "layout"))
     return {
-        "linearise": lambda: _lm_linearise(free0, problem, forward=True, **static),
-        "trial step": lambda: _lm_trial(state, 1e-3, state.diag, problem, **static),
-        "forward": lambda: forward(free0, problem, **static),
+        "LM iteration": lambda: _lm_advance(origin, 1e-3, state.diag, True, problem, **static),
+        "forward": lambda: forward(free0, problem, model=model, layout=layout),
     }
 
 
 def per_step(repeats: int) -> list[dict]:
-    """µs per step of a linearisation, a trial step and a forward rollout."""
+    """µs per step of a Levenberg-Marquardt iteration and of a forward rollout."""
     import jax
     import pysindy as ps
 

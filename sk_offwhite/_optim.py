@@ -26,7 +26,13 @@ import optax
 from sklearn.exceptions import ConvergenceWarning
 
 from ._layout import Layout
-from ._objective import CostWeights, majoriser_constant, n_fit_residuals, residuals
+from ._objective import (
+    CostWeights,
+    _sparsity_residual,
+    majoriser_constant,
+    n_fit_residuals,
+    residuals,
+)
 from ._rollout import Model
 from ._segments import Segments
 
@@ -112,9 +118,14 @@ error of 1e-12 output standard deviations."""
 
 
 class _LMState(NamedTuple):
+    r"""Levenberg-Marquardt's state at ``free``: the residual, the normal equations
+    (:math:`J^TJ`, :math:`J^Tr`), the penalised cost with the L1 term majorised at
+    ``anchor`` (:math:`\Omega` at ``free``) and :math:`\mathrm{diag}(J^TJ)`."""
+
     free: jax.Array
     residual: jax.Array
-    jacobian: jax.Array
+    jtj: jax.Array
+    gradient: jax.Array
     cost: jax.Array
     anchor: jax.Array
     diag: jax.Array
@@ -166,39 +177,61 @@ def linearised(fun, x, forward: bool = True):
     return value, jax.vmap(linear, out_axes=-1)(jnp.eye(x.shape[0], dtype=x.dtype))
 
 
-@partial(jax.jit, static_argnames=("model", "layout", "forward"))
-def _lm_linearise(free, problem, *, model, layout, forward):
-    """LM state at ``free``: residual, Jacobian and penalised cost, the L1 term majorised
-    there (the only program of the solver that differentiates)."""
+def _state_at(free, problem: Problem, model: Model, layout: Layout, forward: bool) -> _LMState:
+    """LM state at ``free``, the L1 term majorised there."""
     anchor = _omega(free, problem, layout)
     anchored = _anchored(problem, anchor)
     fun = partial(free_residuals, problem=anchored, model=model, layout=layout)
     r, jac = linearised(fun, free, forward)
     cost = r @ r + majoriser_constant(anchor, problem.omega_free, anchored.weights)
-    return _LMState(free, r, jac, cost, anchor, jnp.sum(jac**2, axis=0))
+    return _LMState(free, r, jac.T @ jac, jac.T @ r, cost, anchor, jnp.sum(jac**2, axis=0))
 
 
-@partial(jax.jit, static_argnames=("model", "layout"))
-def _lm_trial(state: _LMState, damping, scale, problem, *, model, layout):
-    r"""Damped Gauss-Newton step :math:`(J^TJ + \mu D)\,s = -J^Tr`, projected on the box,
-    and the majorised cost there at the current anchor (a forward simulation only);
-    ``scale`` is the per-variable floors' reference or ``None`` (see
+def _damped_candidate(free, jtj, gradient, damping, scale, problem: Problem):
+    r"""Damped Gauss-Newton step :math:`(J^TJ + \mu D)\,s = -J^Tr` from ``free``,
+    projected on the box; ``scale`` is the per-variable floors' reference or ``None`` (see
     :func:`damped_diagonal`).
 
     Variables held at a bound by the gradient (at the lower bound with :math:`J^Tr > 0`,
     at the upper with :math:`J^Tr < 0`) take no part in the step: the others solve the
     system without them. Clipping a step computed with them in would move the others as
     if the held variable had moved too; measured on the tanks with a dictionary, such runs
-    alternated accepted and rejected steps until ``max_iter``.
-
-    A trial cost below ``state.cost`` guarantees a decrease of the penalised cost."""
-    gradient = state.jacobian.T @ state.residual
-    moving = ~held_at_bound(state.free, gradient, problem.lower, problem.upper)
-    jtj = jnp.where(jnp.outer(moving, moving), state.jacobian.T @ state.jacobian, 0.0)
+    alternated accepted and rejected steps until ``max_iter``."""
+    moving = ~held_at_bound(free, gradient, problem.lower, problem.upper)
+    jtj = jnp.where(jnp.outer(moving, moving), jtj, 0.0)
     system = jtj + jnp.diag(damped_diagonal(jnp.diag(jtj), damping, moving, jnp, scale))
     step = jnp.linalg.solve(system, jnp.where(moving, -gradient, 0.0))
-    candidate = jnp.clip(state.free + step, problem.lower, problem.upper)
-    return candidate, majorised_cost(candidate, state.anchor, problem, model, layout)
+    return jnp.clip(free + step, problem.lower, problem.upper)
+
+
+def _l1_cost(free, anchor, problem: Problem, layout: Layout):
+    """The majorised L1 term of the cost at ``free`` (its residuals' squares and constant)
+    with the majoriser anchored at ``anchor``: no simulation."""
+    weights = _anchored(problem, anchor).weights
+    params = layout.unflatten(problem.base.at[problem.free_index].set(free))
+    sparsity = _sparsity_residual(params, problem.omega_free, weights)
+    return sparsity @ sparsity + majoriser_constant(anchor, problem.omega_free, weights)
+
+
+@partial(jax.jit, static_argnames=("model", "layout", "forward"))
+def _lm_advance(origin, damping, scale, step, problem, *, model, layout, forward):
+    """One Levenberg-Marquardt iteration in one program. ``origin`` is ``(free, jtj,
+    gradient, anchor)`` of the current state. Returns the LM state at the damped step's
+    candidate (:func:`_damped_candidate`; with ``step`` false there is no step and it is
+    the state at ``free``) and the candidate's cost with the L1 term majorised at
+    ``anchor``, which the iteration compares with the current cost: below it, the
+    penalised cost has decreased (the majoriser is tight at its anchor).
+
+    Forming the Jacobian at every candidate, also at those rejected, costs about what a
+    separate forward simulation of each candidate and a Jacobian at each accepted one did
+    (the trial steps of a run are about half rejected at worst), and leaves one program
+    to trace and compile per model and layout instead of two."""
+    free, jtj, gradient, anchor = origin
+    stepped = _damped_candidate(free, jtj, gradient, damping, scale, problem)
+    candidate = jnp.where(step, stepped, free)
+    new = _state_at(candidate, problem, model, layout, forward)
+    at_new, at_old = (_l1_cost(candidate, a, problem, layout) for a in (new.anchor, anchor))
+    return new, new.cost - at_new + at_old
 
 
 def held_at_bound(free, gradient, lower, upper):
@@ -252,19 +285,35 @@ def levenberg_marquardt(
     r"""Projected Levenberg-Marquardt on :math:`\|r(\cdot)\|^2` with the dense Jacobian
     (see :func:`lm_loop` for the steps and stopping rules)."""
     forward = forward_mode(free0, problem, model, layout)
-    static = dict(model=model, layout=layout)
+    static = dict(model=model, layout=layout, forward=forward)
+    reached: dict[int, _LMState] = {}  # the state at the last candidate, formed with its trial
 
     def linearise(free):
-        return _lm_linearise(free, problem, forward=forward, **static)
+        if id(free) in reached:
+            return reached.pop(id(free))
+        n = free.shape[0]
+        origin = (free, np.zeros((n, n)), np.zeros(n), _omega_shaped_zeros(layout))
+        scale = np.ones(n) if scaling == "per-variable" else None  # as the trials pass it
+        return _lm_advance(origin, 1.0, scale, False, problem, **static)[0]
 
     def trial(state, damping, scale):  # a NumPy ``scale`` goes in as it is: no conversion
-        candidate, cost = _lm_trial(state, damping, scale, problem, **static)
-        return candidate, float(cost)
+        origin = (state.free, state.jtj, state.gradient, state.anchor)
+        new, cost = _lm_advance(origin, damping, scale, True, problem, **static)
+        reached.clear()
+        reached[id(new.free)] = new
+        return new.free, float(cost)
 
     return lm_loop(
         linearise, trial, free0, problem, max_iter=max_iter, tol=tol, verbose=verbose,
         scaling=scaling,
     )  # fmt: skip
+
+
+def _omega_shaped_zeros(layout: Layout) -> np.ndarray:
+    r"""Zeros of the shape of :math:`\Omega` (empty without a dictionary): the anchor of the
+    first call of :func:`_lm_advance`, which takes no step and so never reads it."""
+    blocks = dict(layout.blocks)
+    return np.zeros(blocks.get("omega", (0,)))
 
 
 _residuals_program = jax.jit(free_residuals, static_argnames=("model", "layout"))

@@ -1,6 +1,7 @@
 """Levenberg-Marquardt with a coloured Jacobian for multiple shooting over many windows."""
 
 import warnings
+from functools import partial
 
 import jax
 import jax.numpy as jnp
@@ -14,7 +15,16 @@ from sk_offwhite import GreyBoxSparseRegressor
 from sk_offwhite._basis import compile_basis
 from sk_offwhite._layout import Layout
 from sk_offwhite._objective import CostWeights, residual_parts
-from sk_offwhite._optim import _lm_linearise, levenberg_marquardt
+from sk_offwhite._optim import (
+    _anchored,
+    _omega,
+    forward_mode,
+    free_residuals,
+    jacobian_columns,
+    levenberg_marquardt,
+    linearised,
+    n_residuals,
+)
 from sk_offwhite._problem import (
     bound_blocks,
     build_model,
@@ -64,7 +74,9 @@ def _windowed_problem(tanks_data, with_library: bool, horizon=16):
 @pytest.mark.parametrize("with_library", [False, True])
 def test_coloured_jacobian_equals_the_dense_one(tanks_data, with_library):
     problem, free0, model, layout = _windowed_problem(tanks_data, with_library)
-    dense = _lm_linearise(free0, problem, forward=True, model=model, layout=layout).jacobian
+    anchored = _anchored(problem, _omega(free0, problem, layout))  # as the solver forms it
+    columns = jnp.arange(free0.shape[0])
+    dense = jacobian_columns(free0, anchored, columns, model=model, layout=layout)[1]
     parts = residual_parts(
         model,
         layout.unflatten(problem.base.at[problem.free_index].set(free0)),
@@ -107,3 +119,24 @@ def test_long_multiple_shooting_needs_no_solver_choice():
         warnings.simplefilter("ignore", ConvergenceWarning)  # creeps at the sqrt's floor
         est.fit(tanks.u, tanks.z)
     assert est.score(tanks.u, tanks.z) >= 0.998
+
+
+def test_reverse_and_forward_jacobians_agree(tanks_data):
+    problem, free0, model, layout = _windowed_problem(tanks_data, with_library=True)
+    fun = partial(free_residuals, problem=problem, model=model, layout=layout)
+    value_f, jac_f = linearised(fun, free0, forward=True)
+    value_r, jac_r = linearised(fun, free0, forward=False)
+    np.testing.assert_allclose(value_f, value_r, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(jac_r, jac_f, rtol=1e-9, atol=1e-12)
+
+
+def test_the_mode_follows_the_residual_count_when_the_record_is_short(tanks_data):
+    problem, free0, model, layout = _windowed_problem(tanks_data, with_library=True)
+    assert forward_mode(free0, problem, model, layout)  # settled by the record's length
+    segments = problem.segments
+    first = {name: getattr(segments, name)[:, :1] for name in ("u", "z", "mask")}
+    short = problem._replace(segments=segments._replace(**first))
+    n_fit = int(np.size(short.segments.z))
+    assert free0.shape[0] > n_fit  # the count has to be traced
+    wide = forward_mode(free0, short, model, layout)
+    assert wide == (free0.shape[0] <= n_residuals(free0, short, model, layout))
