@@ -16,8 +16,8 @@ prints (and writes ``bench_speed.md`` / ``.json`` in ``--out``, default
   again in that process), min and median, with its JAX version and simulation MSE.
 * **per step** — microseconds per simulated step of what the solver runs: one
   Levenberg-Marquardt iteration (the damped step and the residual and Jacobian at its
-  candidate, one program), and the plain forward rollout, physics only and with a 10-term dictionary, at 10³ and
-  10⁴ samples; min and median of interleaved repeats.
+  candidate, one program), and the plain forward rollout, physics only and with a 10-term
+  dictionary, at 10³ and 10⁴ samples; min and median of interleaved repeats.
 * **grid against one fit** — ``fit_gamma_path`` over 8 values of γ with 3 contiguous
   folds, against one fit at one γ, both after a warm-up (and the first path cold).
 * **memory** — resident set size over 100 fits in one process (growth per fit).

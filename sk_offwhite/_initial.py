@@ -39,6 +39,10 @@ MAX_DAMPING = 1e10
 
 
 class _Iterate(NamedTuple):
+    """The run's state: the last accepted ``x0`` with its residual, Jacobian and cost, the
+    damping, the per-variable scale (:func:`~sk_offwhite._optim.damped_diagonal`), the
+    trial steps taken and whether a stopping rule has fired."""
+
     x0: jax.Array
     residual: jax.Array
     jacobian: jax.Array

@@ -40,6 +40,7 @@ __all__ = [
     "Problem",
     "SolverResult",
     "fit_cost",
+    "forward_mode",
     "free_residuals",
     "jacobian_columns",
     "levenberg_marquardt",
@@ -161,7 +162,8 @@ ms. Tangents one at a time (``lax.map`` of ``jvp``) were slower still (2.7 and 9
 
 def linearised(fun, x, forward: bool = True):
     """``(fun(x), Jacobian of fun at x)``: forward mode (see :data:`LINEARIZE_MAX_FREE`)
-    or reverse mode (``jacrev``, for problems wider than long)."""
+    or reverse mode (``jacrev``, for problems wider than long). ``fun`` is traced once:
+    its value comes out of the differentiation (``has_aux``), not from a second call."""
 
     def with_value(y):
         value = fun(y)
