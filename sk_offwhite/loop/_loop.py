@@ -875,9 +875,11 @@ def _fit_declared(physics, u, z, settings):
     """The declared physics fitted (multiple shooting, then whole), the physics started from
     that fit, its free run and its CV RMSE."""
     workers = start_workers(settings.n_jobs)  # they start while this process fits
-    baseline = fit_continued(_estimator(physics, settings), u, z, settings.horizon)
+    try:
+        baseline = fit_continued(_estimator(physics, settings), u, z, settings.horizon)
+    finally:
+        gather(workers)
     start = warm_physics(physics, baseline)
-    gather(workers)
     declared_cv = cross_validated_rmse(start, u, z, settings)
     return baseline, start, baseline.simulate(u), declared_cv
 
