@@ -41,7 +41,8 @@ MAX_DAMPING = 1e10
 class _Iterate(NamedTuple):
     """The run's state: the last accepted ``x0`` with its residual, Jacobian and cost, the
     damping, the per-variable scale (:func:`~sk_offwhite._optim.damped_diagonal`), the
-    trial steps taken and whether a stopping rule has fired."""
+    trial steps taken, whether a stopping rule has fired and whether ``x0`` has been
+    evaluated (the first pass of the loop only evaluates the start)."""
 
     x0: jax.Array
     residual: jax.Array
@@ -51,6 +52,7 @@ class _Iterate(NamedTuple):
     scale: jax.Array
     iteration: jax.Array
     done: jax.Array
+    evaluated: jax.Array
 
 
 def window_residual(model, params: dict, x0, u, z, scale):
@@ -79,25 +81,29 @@ def _damped_step(it: _Iterate, free):
 
 @partial(jax.jit, static_argnums=0)
 def _solve_window(model, params: dict, x0, u, z, scale, free, max_iter, tol):
-    """The whole Levenberg-Marquardt run; returns the last accepted iterate."""
+    """The whole Levenberg-Marquardt run; returns the last accepted iterate. Its first pass
+    only evaluates the start (no step), so the linearisation is traced once, in the loop."""
     linearise = partial(_linearised, model, params, u=u, z=z, scale=scale, free=free)
-    residual, jacobian, cost = linearise(x0)
+    n, m = x0.shape[0], z.size
     start = _Iterate(
-        x0, residual, jacobian, cost, jnp.asarray(1e-3, x0.dtype),
-        jnp.sum(jacobian**2, axis=0), jnp.asarray(0), jnp.asarray(False),
+        x0, jnp.zeros(m, x0.dtype), jnp.zeros((m, n), x0.dtype), jnp.asarray(jnp.inf, x0.dtype),
+        jnp.asarray(1e-3, x0.dtype), jnp.zeros(n, x0.dtype), jnp.asarray(0), jnp.asarray(False),
+        jnp.asarray(False),
     )  # fmt: skip
 
     def step(it: _Iterate) -> _Iterate:
-        move = _damped_step(it, free)
+        first = ~it.evaluated
+        move = jnp.where(first, 0.0, _damped_step(it, free))
         residual, jacobian, cost = linearise(it.x0 + move)
-        accepted = jnp.isfinite(cost) & (cost < it.cost)
+        accepted = first | (jnp.isfinite(cost) & (cost < it.cost))
         small = (it.cost - cost <= tol * jnp.maximum(it.cost, 1e-300)) & (it.damping < 1.0)
-        lowered = jnp.where(small, it.damping, it.damping / 3.0)
+        small = small & ~first
+        lowered = jnp.where(small | first, it.damping, it.damping / 3.0)
         damping = jnp.where(accepted, lowered, 4.0 * it.damping)
         done = jnp.where(accepted, small | (cost <= ROUNDING_COST), damping > MAX_DAMPING)
         scale = jnp.maximum(it.scale, jnp.sum(jacobian**2, axis=0))
-        count = it.iteration + 1
-        kept = _Iterate(it.x0 + move, residual, jacobian, cost, damping, scale, count, done)
+        count = it.iteration + jnp.where(first, 0, 1)
+        kept = _Iterate(it.x0 + move, residual, jacobian, cost, damping, scale, count, done, True)
         rejected = it._replace(damping=damping, iteration=count, done=done)
         return jax.tree.map(partial(jnp.where, accepted), kept, rejected)
 
