@@ -227,19 +227,16 @@ def _solver_programs(model, layout, problem, free0) -> dict:
     """Zero-argument calls of the solver's program (one iteration: a damped step and the
     state at its candidate, Jacobian included) and of the forward rollout."""
     import jax
-    import numpy as np
 
-    from sk_offwhite._optim import _lm_advance, free_residuals
+    from sk_offwhite._optim import _lm_advance, _origin, first_state, free_residuals
 
     static = dict(model=model, layout=layout, forward=True)
-    n = free0.shape[0]
-    omega = dict(layout.blocks).get("omega", (0,))
-    start = (free0, np.zeros((n, n)), np.zeros(n), np.zeros(omega))
-    state = _lm_advance(start, 1.0, np.ones(n), False, problem, **static)[0]
-    origin = (state.free, state.jtj, state.gradient, state.anchor)
+    state = first_state(free0, problem, scaling="per-variable", **static)
     forward = jax.jit(free_residuals, static_argnames=("model", "layout"))
     return {
-        "LM iteration": lambda: _lm_advance(origin, 1e-3, state.diag, True, problem, **static),
+        "LM iteration": lambda: _lm_advance(
+            _origin(state), 1e-3, state.diag, True, problem, **static
+        ),
         "forward": lambda: forward(free0, problem, model=model, layout=layout),
     }
 

@@ -189,21 +189,21 @@ def _state_at(free, problem: Problem, model: Model, layout: Layout, forward: boo
     return _LMState(free, r, jac.T @ jac, jac.T @ r, cost, anchor, jnp.sum(jac**2, axis=0))
 
 
-def _damped_candidate(free, jtj, gradient, damping, scale, problem: Problem):
+def damped_candidate(free, jtj, gradient, damping, scale, lower, upper):
     r"""Damped Gauss-Newton step :math:`(J^TJ + \mu D)\,s = -J^Tr` from ``free``,
-    projected on the box; ``scale`` is the per-variable floors' reference or ``None`` (see
-    :func:`damped_diagonal`).
+    projected on the box ``[lower, upper]``; ``scale`` is the per-variable floors'
+    reference or ``None`` (see :func:`damped_diagonal`).
 
     Variables held at a bound by the gradient (at the lower bound with :math:`J^Tr > 0`,
     at the upper with :math:`J^Tr < 0`) take no part in the step: the others solve the
     system without them. Clipping a step computed with them in would move the others as
     if the held variable had moved too; measured on the tanks with a dictionary, such runs
     alternated accepted and rejected steps until ``max_iter``."""
-    moving = ~held_at_bound(free, gradient, problem.lower, problem.upper)
+    moving = ~held_at_bound(free, gradient, lower, upper)
     jtj = jnp.where(jnp.outer(moving, moving), jtj, 0.0)
     system = jtj + jnp.diag(damped_diagonal(jnp.diag(jtj), damping, moving, jnp, scale))
     step = jnp.linalg.solve(system, jnp.where(moving, -gradient, 0.0))
-    return jnp.clip(free + step, problem.lower, problem.upper)
+    return jnp.clip(free + step, lower, upper)
 
 
 def _l1_cost(free, anchor, problem: Problem, layout: Layout):
@@ -218,9 +218,9 @@ def _l1_cost(free, anchor, problem: Problem, layout: Layout):
 @partial(jax.jit, static_argnames=("model", "layout", "forward"))
 def _lm_advance(origin, damping, scale, step, problem, *, model, layout, forward):
     """One Levenberg-Marquardt iteration in one program. ``origin`` is ``(free, jtj,
-    gradient, anchor)`` of the current state. Returns the LM state at the damped step's
-    candidate (:func:`_damped_candidate`; with ``step`` false there is no step and it is
-    the state at ``free``) and the candidate's cost with the L1 term majorised at
+    gradient, anchor)`` of the current state (:func:`_origin`). Returns the LM state at
+    the damped step's candidate (:func:`damped_candidate`; with ``step`` false there is no
+    step and it is the state at ``free``) and the candidate's cost with the L1 term majorised at
     ``anchor``, which the iteration compares with the current cost: below it, the
     penalised cost has decreased (the majoriser is tight at its anchor).
 
@@ -229,7 +229,7 @@ def _lm_advance(origin, damping, scale, step, problem, *, model, layout, forward
     (the trial steps of a run are about half rejected at worst), and leaves one program
     to trace and compile per model and layout instead of two."""
     free, jtj, gradient, anchor = origin
-    stepped = _damped_candidate(free, jtj, gradient, damping, scale, problem)
+    stepped = damped_candidate(free, jtj, gradient, damping, scale, problem.lower, problem.upper)
     candidate = jnp.where(step, stepped, free)
     new = _state_at(candidate, problem, model, layout, forward)
     at_new, at_old = (_l1_cost(candidate, a, problem, layout) for a in (new.anchor, anchor))
@@ -288,22 +288,13 @@ def levenberg_marquardt(
     (see :func:`lm_loop` for the steps and stopping rules)."""
     forward = forward_mode(free0, problem, model, layout)
     static = dict(model=model, layout=layout, forward=forward)
-    reached: dict[int, _LMState] = {}  # the state at the last candidate, formed with its trial
 
     def linearise(free):
-        if id(free) in reached:
-            return reached.pop(id(free))
-        n = free.shape[0]
-        origin = (free, np.zeros((n, n)), np.zeros(n), _omega_shaped_zeros(layout))
-        scale = np.ones(n) if scaling == "per-variable" else None  # as the trials pass it
-        return _lm_advance(origin, 1.0, scale, False, problem, **static)[0]
+        return first_state(free, problem, scaling=scaling, **static)
 
     def trial(state, damping, scale):  # a NumPy ``scale`` goes in as it is: no conversion
-        origin = (state.free, state.jtj, state.gradient, state.anchor)
-        new, cost = _lm_advance(origin, damping, scale, True, problem, **static)
-        reached.clear()
-        reached[id(new.free)] = new
-        return new.free, float(cost)
+        new, cost = _lm_advance(_origin(state), damping, scale, True, problem, **static)
+        return new.free, float(cost), new
 
     return lm_loop(
         linearise, trial, free0, problem, max_iter=max_iter, tol=tol, verbose=verbose,
@@ -311,11 +302,22 @@ def levenberg_marquardt(
     )  # fmt: skip
 
 
-def _omega_shaped_zeros(layout: Layout) -> np.ndarray:
-    r"""Zeros of the shape of :math:`\Omega` (empty without a dictionary): the anchor of the
-    first call of :func:`_lm_advance`, which takes no step and so never reads it."""
-    blocks = dict(layout.blocks)
-    return np.zeros(blocks.get("omega", (0,)))
+def _origin(state: _LMState) -> tuple:
+    """What :func:`_lm_advance` steps from: ``(free, jtj, gradient, anchor)``."""
+    return state.free, state.jtj, state.gradient, state.anchor
+
+
+def first_state(free, problem: Problem, *, model, layout, forward, scaling) -> _LMState:
+    r"""The LM state at ``free``: :func:`_lm_advance` without a step, so that the run's
+    first state and its iterations share one program. Its origin's normal equations and
+    anchor (zeros of :math:`\Omega`'s shape) are never read; ``scale`` is passed as the
+    iterations pass it (an array with per-variable scaling, ``None`` with global)."""
+    n = free.shape[0]
+    omega_shape = dict(layout.blocks).get("omega", (0,))
+    origin = (free, np.zeros((n, n)), np.zeros(n), np.zeros(omega_shape))
+    scale = np.ones(n) if scaling == "per-variable" else None
+    static = dict(model=model, layout=layout, forward=forward)
+    return _lm_advance(origin, 1.0, scale, False, problem, **static)[0]
 
 
 _residuals_program = jax.jit(free_residuals, static_argnames=("model", "layout"))
@@ -338,6 +340,12 @@ def n_residuals(free, problem: Problem, model: Model, layout: Layout) -> int:
     return int(_residuals_program.eval_shape(free, problem, model=model, layout=layout).shape[0])
 
 
+START_DAMPING, DAMPING_DOWN, DAMPING_UP, MAX_DAMPING = 1e-3, 3.0, 4.0, 1e10
+"""Marquardt's damping: its start, its divisor after an accepted step and its factor after
+a rejected one, and the value past which no descent step is left (:func:`lm_loop`, and
+the initial-state solver of :mod:`sk_offwhite._initial`)."""
+
+
 def lm_loop(
     linearise, trial, free0, problem, *, max_iter, tol, verbose=0, scaling="per-variable"
 ) -> SolverResult:
@@ -345,13 +353,14 @@ def lm_loop(
 
     ``linearise(free)`` returns a state with ``free``, ``residual``, ``cost`` and ``diag``
     (:math:`\mathrm{diag}(J^TJ)`) at ``free``; ``trial(state, damping, scale)`` the
-    damped, projected candidate and its cost, where ``scale`` is ``None`` with
-    ``scaling='global'`` and the elementwise largest ``diag`` of the run so far with
+    damped, projected candidate, its cost and the state there when the trial formed it
+    (``None``: ``linearise`` forms it if the step is accepted), where ``scale`` is ``None``
+    with ``scaling='global'`` and the elementwise largest ``diag`` of the run so far with
     ``scaling='per-variable'`` (:func:`damped_diagonal`).
 
     Stops when a nearly undamped (Gauss-Newton, damping below ``1``) accepted step lowers
     the cost by less than ``tol`` (relative), when the cost reaches :data:`ROUNDING_COST`
-    (the cost is dimensionless), or when the damping grows past ``1e10`` (no
+    (the cost is dimensionless), or when the damping grows past :data:`MAX_DAMPING` (no
     descent step exists: a stationary point up to numerical precision). A small decrease
     under heavy damping only means the step was short, not that the fit has converged.
     """
@@ -359,13 +368,13 @@ def lm_loop(
     if scaling not in LM_SCALINGS:
         raise ValueError(f"scaling must be one of {LM_SCALINGS}, got {scaling!r}.")
     scale = np.asarray(state.diag) if scaling == "per-variable" else None
-    damping = 1e-3
+    damping = START_DAMPING
     history, message, converged = [float(state.cost)], "max_iter reached", False
     for iteration in range(1, max_iter + 1):
         previous = history[-1]
-        candidate, trial_cost = trial(state, damping, scale)
+        candidate, trial_cost, reached = trial(state, damping, scale)
         if np.isfinite(trial_cost) and trial_cost < previous:
-            state = linearise(candidate)
+            state = linearise(candidate) if reached is None else reached
             scale = None if scale is None else np.maximum(scale, np.asarray(state.diag))
             history.append(float(state.cost))
             _report(verbose, iteration, history[-1], damping)
@@ -373,13 +382,13 @@ def lm_loop(
             if small and damping < 1.0:
                 converged, message = True, "relative cost decrease below tol"
                 break
-            damping /= 3.0
+            damping /= DAMPING_DOWN
             if history[-1] <= ROUNDING_COST:
                 converged, message = True, "cost at rounding level (the data are reproduced)"
                 break
         else:
-            damping *= 4.0
-            if damping > 1e10:
+            damping *= DAMPING_UP
+            if damping > MAX_DAMPING:
                 converged, message = True, "no descent step left (stationary point)"
                 break
     if not converged:

@@ -28,7 +28,6 @@ __all__ = [
     "Model",
     "correction",
     "free_run",
-    "jit_simulate",
     "model_step",
     "multiply_add",
     "simulate",
@@ -136,10 +135,6 @@ def simulate(model: Model, params: dict, x0, u):
 
     final_state, (states, outputs) = jax.lax.scan(advance, x0, u)
     return states, outputs, final_state
-
-
-jit_simulate = jax.jit(simulate, static_argnums=0)
-""":func:`simulate` compiled once per model structure and array shapes."""
 
 
 @partial(jax.jit, static_argnums=0)

@@ -227,13 +227,13 @@ def _damped_step(state: _State, damping: float, scale, plan: Colouring, moving) 
 
 def _trial(state: _State, damping, scale, problem, model, layout, plan: Colouring):
     """Damped step (``scale``: see :func:`~sk_offwhite._optim.damped_diagonal`), projected
-    on the box, and its cost."""
+    on the box, and its cost (the state there is formed only if the step is accepted)."""
     lower, upper = np.asarray(problem.lower), np.asarray(problem.upper)
     moving = ~held_at_bound(state.free, state.gradient, lower, upper)
     step = _damped_step(state, damping, scale, plan, moving)
     candidate = np.clip(state.free + step, lower, upper)
     cost = _cost(jnp.asarray(candidate), state.anchor, problem, model, layout)
-    return candidate, float(cost)
+    return candidate, float(cost), None
 
 
 def structured_levenberg_marquardt(

@@ -26,7 +26,7 @@ from sk_offwhite._effects import (
 )
 from sk_offwhite._optim import _lm_advance
 from sk_offwhite._problem import build_model
-from sk_offwhite._rollout import jit_simulate
+from sk_offwhite._rollout import free_run
 from sk_offwhite.datasets import cascaded_tanks_physics, make_cascaded_tanks, make_coulomb_drive
 from sk_offwhite.loop._switchboard import SeparateModels, Switchboard
 
@@ -204,7 +204,7 @@ def _outputs(physics, u):
     model = build_model(physics, None, ())
     with jax.enable_x64(True):
         params = {"theta": jnp.asarray(physics.parameter_values())}
-        outputs = jit_simulate(model, params, jnp.asarray(physics.x0), jnp.asarray(u))[1]
+        outputs = free_run(model, params, jnp.asarray(physics.x0), jnp.asarray(u))[1]
         return np.asarray(outputs)
 
 

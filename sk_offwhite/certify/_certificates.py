@@ -520,7 +520,7 @@ def _searched(problem, geometry, omega_hat, omega_v, checks, rules) -> dict | No
     )
     if found is None:
         return None
-    support = omega_hat != 0
+    support = omega_hat != 0  # S, as the test at (11)'s solution took it
     lowest = float(np.min(np.sign(omega_hat[support]) * found[support]))
     active = _residual_norm(problem, found) >= problem.mu
     checks = dict(checks, active=active)

@@ -38,18 +38,18 @@ def _json_rows(rows: list[dict]) -> list[dict]:
     ]
 
 
-def _figure(**layout):
+def _figure(figsize, **grid):
     """A matplotlib figure and its axes, without pyplot: no global backend or state is
     touched, and matplotlib is imported only when a report is written (not by the worker
     processes of the loop, which import this package)."""
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=layout.pop("figsize"))
-    return fig, fig.subplots(**layout)
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(**grid)
 
 
 def _figure_outputs(result, u, z, path: Path, title: str) -> None:
-    fig, axes = _figure(nrows=2, ncols=1, figsize=(9, 5.5), sharex=True)
+    fig, axes = _figure((9, 5.5), nrows=2, ncols=1, sharex=True)
     z = np.asarray(z, float).reshape(len(u), -1)[:, 0]
     axes[0].plot(z, "k", lw=1.2, label="measured")
     for key in ("baseline", "final"):
@@ -71,7 +71,7 @@ def _figure_correction(result, u, path: Path) -> bool:
         return False
     est = result.evidence
     run = est.simulate(u)
-    fig, axes = _figure(nrows=1, ncols=len(hypotheses), figsize=(4.5 * len(hypotheses), 3.6))
+    fig, axes = _figure((4.5 * len(hypotheses), 3.6), nrows=1, ncols=len(hypotheses))
     names = list(est.physics_.state_names) + list(est.physics_.input_names)
     signals = np.hstack([run.states, np.asarray(u, float)])
     for ax, hyp in zip(np.atleast_1d(axes), hypotheses, strict=True):
