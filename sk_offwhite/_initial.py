@@ -34,8 +34,7 @@ from ._optim import (
     MAX_DAMPING,
     ROUNDING_COST,
     START_DAMPING,
-    damped_candidate,
-    linearised,
+    damped_diagonal,
 )
 from ._rollout import simulate
 from ._sparsity import output_scale
@@ -44,15 +43,14 @@ __all__ = ["estimate_initial_state"]
 
 
 class _Iterate(NamedTuple):
-    """The run's state: the last accepted ``x0`` with its normal equations (:math:`J^TJ`,
-    :math:`J^Tr`) and cost, the damping, the per-variable scale
-    (:func:`~sk_offwhite._optim.damped_diagonal`), the trial steps taken, whether a
-    stopping rule has fired and whether ``x0`` has been evaluated (the first pass of the
-    loop only evaluates the start)."""
+    """The run's state: the last accepted ``x0`` with its residual, Jacobian and cost, the
+    damping, the per-variable scale (:func:`~sk_offwhite._optim.damped_diagonal`), the
+    trial steps taken, whether a stopping rule has fired and whether ``x0`` has been
+    evaluated (the first pass of the loop only evaluates the start)."""
 
     x0: jax.Array
-    jtj: jax.Array
-    gradient: jax.Array
+    residual: jax.Array
+    jacobian: jax.Array
     cost: jax.Array
     damping: jax.Array
     scale: jax.Array
@@ -67,44 +65,49 @@ def window_residual(model, params: dict, x0, u, z, scale):
     return ((outputs - z) / scale).reshape(-1) / jnp.sqrt(z.size)
 
 
-def _normal_equations(model, params, x0, u, z, scale, free):
-    """:math:`J^TJ`, :math:`J^Tr` and the cost at ``x0`` (zero columns for fixed states)."""
-    fun = partial(window_residual, model, params, u=u, z=z, scale=scale)
-    residual, jacobian = linearised(fun, x0)
-    jacobian = jnp.where(free, jacobian, 0.0)
-    return jacobian.T @ jacobian, jacobian.T @ residual, residual @ residual
+def _linearised(model, params, x0, u, z, scale, free):
+    """Residual, Jacobian (zero columns for the fixed states) and cost at ``x0``."""
+
+    def with_value(x):
+        value = window_residual(model, params, x, u, z, scale)
+        return value, value
+
+    jacobian, residual = jax.jacfwd(with_value, has_aux=True)(x0)
+    return residual, jnp.where(free, jacobian, 0.0), residual @ residual
+
+
+def _damped_step(it: _Iterate, free):
+    r"""Marquardt's step :math:`(J^TJ + \mu D)\,s = -J^Tr` over the free states."""
+    jtj = it.jacobian.T @ it.jacobian
+    system = jtj + jnp.diag(damped_diagonal(jnp.diag(jtj), it.damping, free, jnp, it.scale))
+    return jnp.linalg.solve(system, jnp.where(free, -it.jacobian.T @ it.residual, 0.0))
 
 
 @partial(jax.jit, static_argnums=0)
 def _solve_window(model, params: dict, x0, u, z, scale, free, max_iter, tol):
     """The whole Levenberg-Marquardt run; returns the last accepted iterate. Its first pass
-    only evaluates the start (no step), so the linearisation is traced once, in the loop.
-    The steps are :func:`~sk_offwhite._optim.damped_candidate`'s without bounds (fixed
-    states have zero columns, so they do not move)."""
-    evaluate = partial(_normal_equations, model, params, u=u, z=z, scale=scale, free=free)
-    n, unbounded = x0.shape[0], jnp.full(x0.shape, jnp.inf, x0.dtype)
+    only evaluates the start (no step), so the linearisation is traced once, in the loop."""
+    linearise = partial(_linearised, model, params, u=u, z=z, scale=scale, free=free)
+    n, m = x0.shape[0], z.size
     start = _Iterate(
-        x0, jnp.zeros((n, n), x0.dtype), jnp.zeros(n, x0.dtype), jnp.asarray(jnp.inf, x0.dtype),
+        x0, jnp.zeros(m, x0.dtype), jnp.zeros((m, n), x0.dtype), jnp.asarray(jnp.inf, x0.dtype),
         jnp.asarray(START_DAMPING, x0.dtype), jnp.zeros(n, x0.dtype), jnp.asarray(0),
         jnp.asarray(False), jnp.asarray(False),
     )  # fmt: skip
 
     def step(it: _Iterate) -> _Iterate:
         first = ~it.evaluated
-        moved = damped_candidate(
-            it.x0, it.jtj, it.gradient, it.damping, it.scale, -unbounded, unbounded
-        )
-        candidate = jnp.where(first, it.x0, moved)
-        jtj, gradient, cost = evaluate(candidate)
+        move = jnp.where(first, 0.0, _damped_step(it, free))
+        residual, jacobian, cost = linearise(it.x0 + move)
         accepted = first | (jnp.isfinite(cost) & (cost < it.cost))
         small = (it.cost - cost <= tol * jnp.maximum(it.cost, 1e-300)) & (it.damping < 1.0)
         small = small & ~first
         lowered = jnp.where(small | first, it.damping, it.damping / DAMPING_DOWN)
         damping = jnp.where(accepted, lowered, DAMPING_UP * it.damping)
         done = jnp.where(accepted, small | (cost <= ROUNDING_COST), damping > MAX_DAMPING)
-        scale = jnp.maximum(it.scale, jnp.diag(jtj))
+        scale = jnp.maximum(it.scale, jnp.sum(jacobian**2, axis=0))
         count = it.iteration + jnp.where(first, 0, 1)
-        kept = _Iterate(candidate, jtj, gradient, cost, damping, scale, count, done, True)
+        kept = _Iterate(it.x0 + move, residual, jacobian, cost, damping, scale, count, done, True)
         rejected = it._replace(damping=damping, iteration=count, done=done)
         return jax.tree.map(partial(jnp.where, accepted), kept, rejected)
 
