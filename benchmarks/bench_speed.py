@@ -224,19 +224,26 @@ def _timed(function, repeats: int) -> list[float]:
 
 
 def _solver_programs(model, layout, problem, free0) -> dict:
-    """Zero-argument calls of the solver's program (one iteration: a damped step and the
-    state at its candidate, Jacobian included) and of the forward rollout."""
+    """Zero-argument calls of the solver's program, one iteration (a damped step, the
+    candidate's simulation and, when it is accepted, the state there, Jacobian included;
+    the current cost is set to ``inf`` or ``-inf`` so that the candidate is accepted or
+    rejected), and of the forward rollout."""
     import jax
+    import numpy as np
 
     from sk_offwhite._optim import _lm_advance, _origin, first_state, free_residuals
 
     static = dict(model=model, layout=layout, forward=True)
     state = first_state(free0, problem, scaling="per-variable", **static)
     forward = jax.jit(free_residuals, static_argnames=("model", "layout"))
+
+    def iteration(current_cost: float):
+        origin = (*_origin(state)[:-1], np.array(current_cost))
+        return lambda: _lm_advance(origin, 1e-3, state.diag, True, problem, **static)
+
     return {
-        "LM iteration": lambda: _lm_advance(
-            _origin(state), 1e-3, state.diag, True, problem, **static
-        ),
+        "LM iteration, accepted": iteration(np.inf),
+        "LM iteration, rejected": iteration(-np.inf),
         "forward": lambda: forward(free0, problem, model=model, layout=layout),
     }
 

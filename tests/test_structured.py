@@ -17,12 +17,16 @@ from sk_offwhite._layout import Layout
 from sk_offwhite._objective import CostWeights, residual_parts
 from sk_offwhite._optim import (
     _anchored,
+    _lm_advance,
     _omega,
+    _origin,
+    first_state,
     forward_mode,
     free_residuals,
     jacobian_columns,
     levenberg_marquardt,
     linearised,
+    majorised_cost,
     n_residuals,
 )
 from sk_offwhite._problem import (
@@ -33,6 +37,7 @@ from sk_offwhite._problem import (
     make_problem,
 )
 from sk_offwhite._segments import make_segments
+from sk_offwhite._sparsity import block_columns
 from sk_offwhite._structured import (
     _compressed,
     _linearise,
@@ -140,3 +145,31 @@ def test_the_mode_follows_the_residual_count_when_the_record_is_short(tanks_data
     assert free0.shape[0] > n_fit  # the count has to be traced
     wide = forward_mode(free0, short, model, layout)
     assert wide == (free0.shape[0] <= n_residuals(free0, short, model, layout))
+
+
+def test_an_lm_iteration_forms_the_normal_equations_only_at_an_accepted_candidate(tanks_data):
+    """The same program accepts or rejects (the current cost ``inf`` or ``-inf``): the
+    candidate and its cost at the old anchor are the same either way; the normal equations
+    are those at the candidate when it is accepted, zeros when it is rejected."""
+    problem, free0, model, layout = _windowed_problem(tanks_data, with_library=True)
+    omega_at, _ = block_columns(layout, np.asarray(problem.free_index), "omega")
+    start = np.array(free0)
+    start[omega_at] = 1e-4 * np.arange(1, omega_at.size + 1)  # the anchor matters
+    static = dict(model=model, layout=layout, forward=True)
+    state = first_state(jnp.asarray(start), problem, scaling="per-variable", **static)
+    origin = _origin(state)
+    outcome = {
+        name: _lm_advance((*origin[:-1], np.array(current)), 10.0, state.diag, True, problem,
+                          **static)
+        for name, current in (("accepted", np.inf), ("rejected", -np.inf))
+    }  # fmt: skip
+    (accepted, cost), (rejected, rejected_cost) = outcome["accepted"], outcome["rejected"]
+    np.testing.assert_array_equal(rejected.free, accepted.free)
+    assert np.isfinite(cost) and float(rejected_cost) == float(cost)
+    at_old_anchor = majorised_cost(accepted.free, state.anchor, problem, model, layout)
+    np.testing.assert_allclose(cost, at_old_anchor, rtol=1e-12)
+    assert not np.any(np.asarray(rejected.jtj)) and not np.any(np.asarray(rejected.gradient))
+    there = first_state(accepted.free, problem, scaling="per-variable", **static)
+    for name in ("jtj", "gradient", "diag", "cost", "anchor"):
+        np.testing.assert_allclose(getattr(accepted, name), getattr(there, name), rtol=1e-10)
+    assert not np.allclose(accepted.anchor, state.anchor)
