@@ -233,10 +233,11 @@ def _lm_advance(origin, damping, scale, step, problem, *, model, layout, forward
 
     The candidate is simulated first; its Jacobian is formed (in a ``lax.cond`` branch)
     only when its cost is finite and below the current one. A rejected candidate costs one
-    forward simulation: on the Cascaded Tanks with a dictionary, 45 % of the candidates of
-    a refit are rejected, most because the simulation leaves the stable region, and a
-    Jacobian costs many simulations. One program per model and layout holds the step, the
-    simulation and the linearisation."""
+    forward simulation. The closed loop on the Cascaded Tanks rejects 41 % of its
+    candidates (7,853 of 19,098; some leave the region where the simulation stays finite),
+    and with a 10-term dictionary an accepted iteration costs 4 (1000 samples) to 11
+    (10 000) rejected ones. One program per model and layout holds the step, the
+    simulation and the linearisation; the simulation makes it longer to compile."""
     free, jtj, gradient, anchor, cost = origin
     stepped = damped_candidate(free, jtj, gradient, damping, scale, problem.lower, problem.upper)
     candidate = jnp.where(step, stepped, free)
