@@ -147,15 +147,19 @@ def test_the_mode_follows_the_residual_count_when_the_record_is_short(tanks_data
     assert wide == (free0.shape[0] <= n_residuals(free0, short, model, layout))
 
 
-def test_an_lm_iteration_forms_the_normal_equations_only_at_an_accepted_candidate(tanks_data):
+@pytest.mark.parametrize("forward", [True, False], ids=["jacfwd", "jacrev"])
+def test_an_lm_iteration_forms_the_normal_equations_only_at_an_accepted_candidate(
+    tanks_data, forward
+):
     """The same program accepts or rejects (the current cost ``inf`` or ``-inf``): the
     candidate and its cost at the old anchor are the same either way; the normal equations
-    are those at the candidate when it is accepted, zeros when it is rejected."""
+    are those at the candidate when it is accepted, zeros when it is rejected. In both
+    modes of the Jacobian: they agree with each other."""
     problem, free0, model, layout = _windowed_problem(tanks_data, with_library=True)
     omega_at, _ = block_columns(layout, np.asarray(problem.free_index), "omega")
     start = np.array(free0)
     start[omega_at] = 1e-4 * np.arange(1, omega_at.size + 1)  # the anchor matters
-    static = dict(model=model, layout=layout, forward=True)
+    static = dict(model=model, layout=layout, forward=forward)
     state = first_state(jnp.asarray(start), problem, scaling="per-variable", **static)
     origin = _origin(state)
     outcome = {
@@ -173,3 +177,7 @@ def test_an_lm_iteration_forms_the_normal_equations_only_at_an_accepted_candidat
     for name in ("jtj", "gradient", "diag", "cost", "anchor"):
         np.testing.assert_allclose(getattr(accepted, name), getattr(there, name), rtol=1e-10)
     assert not np.allclose(accepted.anchor, state.anchor)
+    other = first_state(
+        accepted.free, problem, scaling="per-variable", **static | {"forward": not forward}
+    )
+    np.testing.assert_allclose(accepted.jtj, other.jtj, rtol=1e-9, atol=1e-12)
