@@ -216,9 +216,9 @@ def _majorised_at(free, anchor, problem: Problem, model: Model, layout: Layout):
 def _unreached(candidate, residual, cost, anchor) -> _LMState:
     """What :func:`_lm_advance` returns for a rejected candidate: its residual and cost at
     the old anchor, no normal equations (the iteration reads neither)."""
-    n = candidate.shape[0]
-    zeros = jnp.zeros(n, candidate.dtype)
-    return _LMState(candidate, residual, jnp.zeros((n, n)), zeros, cost, anchor, zeros)
+    n, dtype = candidate.shape[0], candidate.dtype
+    zeros = jnp.zeros(n, dtype)
+    return _LMState(candidate, residual, jnp.zeros((n, n), dtype), zeros, cost, anchor, zeros)
 
 
 @partial(jax.jit, static_argnames=("model", "layout", "forward"))
