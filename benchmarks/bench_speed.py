@@ -15,11 +15,13 @@ prints (and writes ``bench_speed.md`` / ``.json`` in ``--out``, default
   (+ predict, compilation included), *cold* (the two together) and *warm* (the same fit
   again in that process), min and median, with its JAX version and simulation MSE.
 * **per step** — microseconds per simulated step of what the solver runs: one
-  Levenberg-Marquardt iteration (the damped step and the residual and Jacobian at its
-  candidate, one program), and the plain forward rollout, physics only and with a 10-term
-  dictionary, at 10³ and 10⁴ samples; min and median of interleaved repeats.
+  Levenberg-Marquardt iteration (one program: the damped step, the candidate's simulation
+  and, when it is accepted, the Jacobian there), accepted and rejected, and the plain
+  forward rollout, physics only and with a 10-term dictionary, at 10³ and 10⁴ samples; min
+  and median of interleaved repeats.
 * **grid against one fit** — ``fit_gamma_path`` over 8 values of γ with 3 contiguous
-  folds, against one fit at one γ, both after a warm-up (and the first path cold).
+  folds, and ``GridSearchCV`` over the same γ and folds, against one fit at one γ, all
+  after a warm-up (and the first path cold).
 * **memory** — resident set size over 100 fits in one process (growth per fit).
 * **main job** (``--main-job``) — the README's closed loop on the Cascaded Tanks in a
   fresh process, split into XLA compilation, tracing, lowering and the rest
@@ -279,7 +281,9 @@ def per_step(repeats: int) -> list[dict]:
 
 def grid_against_one() -> dict:
     """``fit_gamma_path`` over 8 γ (3 folds) against one fit at one γ, in one process and
-    with the folds in two worker processes (``n_jobs=2``; "cold" is their first path)."""
+    with the folds in two worker processes (``n_jobs=2``; "cold" is their first path); and
+    ``GridSearchCV`` over the path's 8 γ (3 folds, one process), warm, with the traces and
+    compilations it makes (``jax.monitoring``)."""
     import pysindy as ps
     from sklearn.model_selection import KFold
 
@@ -296,14 +300,42 @@ def grid_against_one() -> dict:
         for jobs, suffix in ((None, ""), (2, "_2jobs")):
             for attempt in ("cold", "warm"):
                 start = time.perf_counter()
-                fit_gamma_path(est, u, z, n_gammas=8, cv=KFold(3), n_jobs=jobs)
+                path = fit_gamma_path(est, u, z, n_gammas=8, cv=KFold(3), n_jobs=jobs)
                 out[f"path{suffix}_{attempt}"] = time.perf_counter() - start
+        out |= _grid_search(est, path.gammas, u, z)
         start = time.perf_counter()
         est.fit(u, z)
         out["one_fit_warm"] = time.perf_counter() - start
-    out["ratio_warm"] = out["path_warm"] / out["one_fit_warm"]
-    out["ratio_warm_2jobs"] = out["path_2jobs_warm"] / out["one_fit_warm"]
+    for key in ("path_warm", "path_2jobs_warm", "grid_search_warm"):
+        out[key.replace("_warm", "_ratio")] = out[key] / out["one_fit_warm"]
     return out
+
+
+def _grid_search(est, gammas, u, z) -> dict:
+    """``GridSearchCV`` over ``gammas`` (3 contiguous folds), a first time and again (warm),
+    the second with its counts of traces and XLA compilations."""
+    import collections
+
+    import jax
+    from sklearn.model_selection import GridSearchCV, KFold
+
+    search = GridSearchCV(est, {"gamma": list(gammas)}, cv=KFold(3))
+    search.fit(u, z)
+    events = collections.Counter()
+
+    def count(event, duration, **kwargs):
+        events.update({event: 1})
+
+    jax.monitoring.register_event_duration_secs_listener(count)
+    start = time.perf_counter()
+    search.fit(u, z)
+    elapsed = time.perf_counter() - start
+    jax.monitoring.unregister_event_duration_listener(count)
+    return {
+        "grid_search_warm": elapsed,
+        "grid_search_traces": events["/jax/core/compile/jaxpr_trace_duration"],
+        "grid_search_compiles": events["/jax/core/compile/backend_compile_duration"],
+    }
 
 
 def _rss_mib() -> float:
