@@ -25,20 +25,9 @@ from pathlib import Path
 
 import jax
 import numpy as np
-from bench_scaling import cost_problem  # same folder: run as a script
-from bench_speed import K4, _tanks_record
+from bench_speed import _lm_problem  # same folder: run as a script
 
 MAX_STEPS = 200
-
-
-def _problem(n_samples: int, library):
-    from sk_offwhite.datasets import cascaded_tanks_physics
-
-    u, z = _tanks_record()
-    repeats = -(-n_samples // len(u))
-    u, z = np.tile(u, (repeats, 1))[:n_samples], np.tile(z, (repeats, 1))[:n_samples]
-    physics = cascaded_tanks_physics(fixed={"k4": K4})
-    return cost_problem(u, z, physics, library, weights=(0.0, 0.0, 0.0, 1.0, 1.0))
 
 
 def _solvers(model, layout, problem, free0) -> dict:
@@ -88,7 +77,7 @@ def compare(repeats: int) -> list[dict]:
     with jax.enable_x64(True):
         cases = ((1000, None), (10000, None), (1000, ps.PolynomialLibrary(degree=2)))
         for n_samples, library in cases:
-            model, layout, problem, free0 = _problem(n_samples, library)
+            model, layout, problem, free0 = _lm_problem(n_samples, library, gamma=0.0)
             for name, call in _solvers(model, layout, problem, free0).items():
                 first, (free, n_iter) = _timed(call)
                 warm = min(_timed(call)[0] for _ in range(repeats))

@@ -198,9 +198,9 @@ def _summary(runs: list[dict], keys) -> dict:
     }
 
 
-def _lm_problem(n_samples: int, library):
+def _lm_problem(n_samples: int, library, gamma: float = 1e-3):
     """The solver's data for the tanks cost at ``n_samples`` samples (the measured record
-    repeated): ``(model, layout, problem, free0)``."""
+    repeated) and penalty ``gamma``: ``(model, layout, problem, free0)``."""
     import numpy as np
     from bench_scaling import cost_problem  # same folder: run as a script
 
@@ -210,7 +210,7 @@ def _lm_problem(n_samples: int, library):
     repeats = -(-n_samples // len(u))
     u, z = np.tile(u, (repeats, 1))[:n_samples], np.tile(z, (repeats, 1))[:n_samples]
     physics = cascaded_tanks_physics(fixed={"k4": K4})
-    return cost_problem(u, z, physics, library, weights=(1e-3, 0.0, 0.0, 1.0, 1.0))
+    return cost_problem(u, z, physics, library, weights=(gamma, 0.0, 0.0, 1.0, 1.0))
 
 
 def _timed(function, repeats: int) -> list[float]:

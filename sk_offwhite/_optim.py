@@ -26,12 +26,7 @@ import optax
 from sklearn.exceptions import ConvergenceWarning
 
 from ._layout import Layout
-from ._objective import (
-    CostWeights,
-    majoriser_constant,
-    n_fit_residuals,
-    residuals,
-)
+from ._objective import CostWeights, majoriser_constant, n_fit_residuals, residuals
 from ._rollout import Model
 from ._segments import Segments
 
@@ -178,13 +173,20 @@ def linearised(fun, x, forward: bool = True):
     return value, jax.vmap(linear, out_axes=-1)(jnp.eye(x.shape[0], dtype=x.dtype))
 
 
+def _penalised(r, anchored: Problem):
+    """The penalised cost from the residuals of ``anchored`` (L1 term majorised at its
+    anchor): their squares and the majoriser's constant."""
+    weights = anchored.weights
+    return r @ r + majoriser_constant(weights.l1_anchor, anchored.omega_free, weights)
+
+
 def _state_at(free, problem: Problem, model: Model, layout: Layout, forward: bool) -> _LMState:
     """LM state at ``free``, the L1 term majorised there."""
     anchor = _omega(free, problem, layout)
     anchored = _anchored(problem, anchor)
     fun = partial(free_residuals, problem=anchored, model=model, layout=layout)
     r, jac = linearised(fun, free, forward)
-    cost = r @ r + majoriser_constant(anchor, problem.omega_free, anchored.weights)
+    cost = _penalised(r, anchored)
     return _LMState(free, r, jac.T @ jac, jac.T @ r, cost, anchor, jnp.sum(jac**2, axis=0))
 
 
@@ -210,7 +212,7 @@ def _majorised_at(free, anchor, problem: Problem, model: Model, layout: Layout):
     one forward simulation, no derivative."""
     anchored = _anchored(problem, anchor)
     r = free_residuals(free, anchored, model, layout)
-    return r, r @ r + majoriser_constant(anchor, problem.omega_free, anchored.weights)
+    return r, _penalised(r, anchored)
 
 
 def _unreached(candidate, residual, cost, anchor) -> _LMState:
@@ -224,12 +226,12 @@ def _unreached(candidate, residual, cost, anchor) -> _LMState:
 @partial(jax.jit, static_argnames=("model", "layout", "forward"))
 def _lm_advance(origin, damping, scale, step, problem, *, model, layout, forward):
     """One Levenberg-Marquardt iteration in one program. ``origin`` is ``(free, jtj,
-    gradient, anchor, cost)`` of the current state (:func:`_origin`). Returns the
-    candidate's cost with the L1 term majorised at ``anchor``, which the iteration compares
-    with the current cost (below it, the penalised cost has decreased: the majoriser is
-    tight at its anchor), and the LM state at the damped step's candidate
-    (:func:`damped_candidate`; with ``step`` false there is no step and it is the state at
-    ``free``) when the candidate is accepted.
+    gradient, anchor, cost)`` of the current state (:func:`_origin`). Returns the LM state
+    at the damped step's candidate (:func:`damped_candidate`; with ``step`` false there is
+    no step and it is the state at ``free``), the candidate's cost with the L1 term
+    majorised at ``anchor`` (below the current cost, the penalised cost has decreased: the
+    majoriser is tight at its anchor) and whether the candidate was accepted; the state of
+    a rejected one holds placeholders.
 
     The candidate is simulated first; its Jacobian is formed (in a ``lax.cond`` branch)
     only when its cost is finite and below the current one. A rejected candidate costs one
@@ -248,7 +250,7 @@ def _lm_advance(origin, damping, scale, step, problem, *, model, layout, forward
         lambda: _state_at(candidate, problem, model, layout, forward),
         lambda: _unreached(candidate, residual, trial_cost, anchor),
     )
-    return new, trial_cost
+    return new, trial_cost, accepted
 
 
 def held_at_bound(free, gradient, lower, upper):
@@ -306,8 +308,8 @@ def levenberg_marquardt(
         return first_state(free, problem, scaling=scaling, **static)
 
     def trial(state, damping, scale):  # a NumPy ``scale`` goes in as it is: no conversion
-        new, cost = _lm_advance(_origin(state), damping, scale, True, problem, **static)
-        return new.free, float(cost), new
+        new, cost, accepted = _lm_advance(_origin(state), damping, scale, True, problem, **static)
+        return new.free, float(cost), new if bool(accepted) else None
 
     return lm_loop(
         linearise, trial, free0, problem, max_iter=max_iter, tol=tol, verbose=verbose,

@@ -167,7 +167,8 @@ def test_an_lm_iteration_forms_the_normal_equations_only_at_an_accepted_candidat
                           **static)
         for name, current in (("accepted", np.inf), ("rejected", -np.inf))
     }  # fmt: skip
-    (accepted, cost), (rejected, rejected_cost) = outcome["accepted"], outcome["rejected"]
+    (accepted, cost, taken), (rejected, rejected_cost, refused) = outcome.values()
+    assert bool(taken) and not bool(refused)
     np.testing.assert_array_equal(rejected.free, accepted.free)
     assert np.isfinite(cost) and float(rejected_cost) == float(cost)
     at_old_anchor = majorised_cost(accepted.free, state.anchor, problem, model, layout)
