@@ -25,7 +25,7 @@ import warnings
 import jax
 import numpy as np
 
-__all__ = ["FUSED_LOOP_BYTES", "enable_fused_loops", "to_device"]
+__all__ = ["FUSED_LOOP_BYTES", "enable_fused_loops", "fused_loops", "to_device"]
 
 FUSED_LOOP_BYTES = 10**9
 """The threshold :func:`enable_fused_loops` sets (bytes accessed by one loop, as XLA's
@@ -33,6 +33,7 @@ cost analysis counts them): every loop of the package's programs is below it."""
 
 _OPTION = "xla_cpu_small_while_loop_byte_threshold"
 _EXTRA = "--xla_backend_extra_options="
+_set_too_late = False  # enable_fused_loops set the option after this process's backend started
 
 
 def enable_fused_loops(byte_limit: int = FUSED_LOOP_BYTES) -> bool:
@@ -67,6 +68,8 @@ def enable_fused_loops(byte_limit: int = FUSED_LOOP_BYTES) -> bool:
         return True
     os.environ["XLA_FLAGS"] = with_backend_option(flags, f"{_OPTION}={int(byte_limit)}")
     if _backend_started():
+        global _set_too_late
+        _set_too_late = True
         warnings.warn(
             "enable_fused_loops: JAX's backend has already started in this process, so its "
             "loops keep XLA's default; processes started from now on compile them into one "
@@ -76,6 +79,13 @@ def enable_fused_loops(byte_limit: int = FUSED_LOOP_BYTES) -> bool:
         )
         return False
     return True
+
+
+def fused_loops() -> bool:
+    """Whether this process's loops are compiled into one kernel: the option of
+    :func:`enable_fused_loops` is in ``XLA_FLAGS``, and was there before JAX started its
+    backend."""
+    return _OPTION in os.environ.get("XLA_FLAGS", "") and not _set_too_late
 
 
 def with_backend_option(flags: str, option: str) -> str:

@@ -28,10 +28,10 @@ from scipy.sparse.linalg import splu
 
 from ._objective import ResidualParts, majoriser_constant, residual_parts
 from ._optim import (
-    LINEARIZE_MAX_FREE,
     SolverResult,
     _anchored,
     _omega,
+    _through_linearisation,
     damped_diagonal,
     free_residuals,
     held_at_bound,
@@ -164,7 +164,7 @@ def _compressed(free, seeds, problem, *, model, layout):
     anchor = _omega(free, problem, layout)
     anchored = _anchored(problem, anchor)
     fun = partial(free_residuals, problem=anchored, model=model, layout=layout)
-    if seeds.shape[1] <= LINEARIZE_MAX_FREE:
+    if _through_linearisation(seeds.shape[1]):
         r, linear = jax.linearize(fun, free)
         jac = jax.vmap(linear, out_axes=-1)(seeds.T)
     else:

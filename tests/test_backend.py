@@ -89,6 +89,20 @@ def test_enabled_after_jax_started_warns_and_reaches_child_processes():
     assert _run("", "", setup) == "True"
 
 
+@pytest.mark.parametrize(
+    "setup, expected",
+    [
+        ("", "False"),
+        ("sk_offwhite.enable_fused_loops()\n", "True"),
+        ("jax.numpy.ones(1).block_until_ready()\nsk_offwhite.enable_fused_loops()\n", "False"),
+    ],
+    ids=["xla-default", "enabled-before-start", "enabled-too-late"],
+)
+def test_the_process_knows_whether_its_loops_are_fused(setup, expected):
+    code = "print(sk_offwhite._backend.fused_loops())"
+    assert _run(code, "", "import jax, sk_offwhite\n" + setup) == expected
+
+
 def test_an_application_value_is_left_as_it_is(monkeypatch):
     monkeypatch.setenv("XLA_FLAGS", f"--xla_backend_extra_options={OPTION}=5")
     assert enable_fused_loops() is True

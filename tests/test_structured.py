@@ -12,10 +12,12 @@ from conftest import tanks_physics
 from sklearn.exceptions import ConvergenceWarning
 
 from sk_offwhite import GreyBoxSparseRegressor
+from sk_offwhite import _optim as optim
 from sk_offwhite._basis import compile_basis
 from sk_offwhite._layout import Layout
 from sk_offwhite._objective import CostWeights, residual_parts
 from sk_offwhite._optim import (
+    LINEARIZE_MAX_FREE,
     _anchored,
     _lm_advance,
     _omega,
@@ -133,6 +135,31 @@ def test_reverse_and_forward_jacobians_agree(tanks_data):
     value_r, jac_r = linearised(fun, free0, forward=False)
     np.testing.assert_allclose(value_f, value_r, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(jac_r, jac_f, rtol=1e-9, atol=1e-12)
+
+
+def test_the_linearisation_is_used_only_for_few_columns_and_loops_not_fused(monkeypatch):
+    for fused in (False, True):
+        monkeypatch.setattr(optim, "fused_loops", lambda fused=fused: fused)
+        assert optim._through_linearisation(LINEARIZE_MAX_FREE) is not fused
+        assert not optim._through_linearisation(LINEARIZE_MAX_FREE + 1)
+
+
+def test_the_linearisation_and_jacfwd_give_the_same_jacobian(monkeypatch):
+    def simulated(x):  # a short rollout: the kind of function the solver differentiates
+        def step(state, k):
+            state = state + 0.1 * jnp.tanh(x * state + k)
+            return state, state @ x
+
+        return jax.lax.scan(step, jnp.ones(5), jnp.arange(20.0))[1]
+
+    jacobians = []
+    with jax.enable_x64(True):
+        for fused in (False, True):  # through jax.linearize, then through jacfwd
+            monkeypatch.setattr(optim, "fused_loops", lambda fused=fused: fused)
+            value, jacobian = linearised(simulated, jnp.linspace(0.1, 0.5, 5))
+            jacobians.append(np.asarray(jacobian))
+    assert jacobians[0].shape == (20, 5) and np.abs(jacobians[0]).max() > 0.1
+    np.testing.assert_allclose(jacobians[0], jacobians[1], rtol=1e-12, atol=1e-15)
 
 
 def test_the_mode_follows_the_residual_count_when_the_record_is_short(tanks_data):
