@@ -442,9 +442,11 @@ def test_input_validation():
         ridge.evaluate({"W": ridge.init_params["W"]}, jnp.zeros(3))
 
 
-def test_pysindy_is_imported_on_the_first_dictionary_not_with_the_package():
+def test_pysindy_is_imported_on_the_first_dictionary_not_with_the_package_or_its_data():
     code = (
-        "import sys, sk_offwhite; assert 'pysindy' not in sys.modules; "
+        "import sys, sk_offwhite, sk_offwhite.datasets as d; assert 'pysindy' not in sys.modules; "
+        "d.load_cascaded_tanks(); d.cascaded_tanks_physics(); assert 'pysindy' not in sys.modules; "
+        "d.make_cascaded_tanks(n_samples=50, random_state=0); assert 'pysindy' in sys.modules; "
         "import pysindy as ps; "
         "sk_offwhite.compile_basis(ps.PolynomialLibrary(degree=2), ['x', 'u'], 1)"
     )

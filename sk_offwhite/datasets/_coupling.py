@@ -9,7 +9,6 @@ side stays where the input left it), here the coupling's spring is slack inside 
 from __future__ import annotations
 
 import numpy as np
-import pysindy as ps
 from sklearn.utils import Bunch
 
 from sk_offwhite.datasets._backlash import SERVO_KINDS, servo_rhs
@@ -36,6 +35,8 @@ def _coupling_physics(values: dict, x0):
 
 
 def _coupling_library():
+    import pysindy as ps  # imported when a dictionary is asked for
+
     return ps.PolynomialLibrary(degree=3)
 
 

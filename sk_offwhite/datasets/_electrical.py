@@ -8,7 +8,6 @@ SI units (volts, seconds).
 from __future__ import annotations
 
 import numpy as np
-import pysindy as ps
 from sklearn.utils import Bunch
 
 from sk_offwhite._physics import PhysicsModel
@@ -41,6 +40,8 @@ def _diode_rc_physics(values: dict, x0) -> PhysicsModel:
 
 
 def _electrical_library():
+    import pysindy as ps  # imported when a dictionary is asked for
+
     return ps.PolynomialLibrary(degree=2)
 
 

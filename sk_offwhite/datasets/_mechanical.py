@@ -22,7 +22,6 @@ from dataclasses import dataclass
 
 import jax.numpy as jnp
 import numpy as np
-import pysindy as ps
 from sklearn.utils import Bunch, check_random_state
 
 from sk_offwhite._physics import Parameter, PhysicsModel
@@ -134,6 +133,8 @@ def _drive_physics(values: dict, x0) -> PhysicsModel:
 
 
 def _drive_library():
+    import pysindy as ps  # imported when a dictionary is asked for
+
     steps = ps.CustomLibrary([_tanh_width], [_TermName(f"tanh({{0}}/{DRIVE_EPS:g})")])
     return ps.PolynomialLibrary(degree=3) + steps
 
@@ -242,6 +243,8 @@ def _duffing_physics(values: dict, x0) -> PhysicsModel:
 
 
 def _polynomial_library():
+    import pysindy as ps  # imported when a dictionary is asked for
+
     return ps.PolynomialLibrary(degree=3)
 
 
@@ -354,6 +357,8 @@ def _pendulum_physics(values: dict, x0) -> PhysicsModel:
 
 
 def _pendulum_library():
+    import pysindy as ps  # imported when a dictionary is asked for
+
     return ps.PolynomialLibrary(degree=3) + ps.CustomLibrary(
         [_signed_square], [_TermName("{0}|{0}|")]
     )

@@ -30,7 +30,6 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 import numpy as np
-import pysindy as ps
 from sklearn.utils import Bunch, check_random_state
 
 from sk_offwhite._physics import Parameter, PhysicsModel
@@ -268,6 +267,8 @@ def _tanks_library():
     """Degree-2 polynomials plus smooth hinges at the tank top times ``1, b, b^2`` on
     ``[x1, x2, u]`` (19 features); least squares on them explains about 97-99 % of the
     variance of the overflow contribution to equation 0."""
+    import pysindy as ps  # imported when a dictionary is asked for
+
     functions = [_hinge, _hinge_times, _hinge_times_square]
     names = [_TermName("hinge({0})"), _TermName("hinge({0}) {1}"), _TermName("hinge({0}) {1}^2")]
     return ps.PolynomialLibrary(degree=2) + ps.CustomLibrary(functions, names)
@@ -366,6 +367,8 @@ def _oscillator_physics(values: dict, x0) -> PhysicsModel:
 
 
 def _friction_library():
+    import pysindy as ps  # imported when a dictionary is asked for
+
     tanh_terms = ps.CustomLibrary([_tanh_10], [_TermName("tanh(10 {0})")])
     return ps.PolynomialLibrary(degree=2) + tanh_terms
 
@@ -433,6 +436,8 @@ def _motor_physics(values: dict, x0) -> PhysicsModel:
 
 
 def _actuator_library():
+    import pysindy as ps  # imported when a dictionary is asked for
+
     return ps.PolynomialLibrary(degree=3) + ps.CustomLibrary(
         [_signed_square], [_TermName("{0}|{0}|")]
     )
@@ -531,6 +536,8 @@ def _tank_physics(values: dict, x0) -> PhysicsModel:
 
 
 def _leaky_library():
+    import pysindy as ps  # imported when a dictionary is asked for
+
     return ps.PolynomialLibrary(degree=2)
 
 

@@ -10,7 +10,6 @@ tested on an offset record.
 from __future__ import annotations
 
 import numpy as np
-import pysindy as ps
 from sklearn.utils import Bunch
 
 from sk_offwhite._physics import PhysicsModel
@@ -43,6 +42,8 @@ def _heated_block_physics(values: dict, x0) -> PhysicsModel:
 
 
 def _thermal_library():
+    import pysindy as ps  # imported when a dictionary is asked for
+
     return ps.PolynomialLibrary(degree=2)
 
 

@@ -4,11 +4,14 @@ from __future__ import annotations
 
 import warnings
 from collections.abc import Callable
+from typing import TYPE_CHECKING
 
 import jax.numpy as jnp
 import numpy as np
-import pysindy as ps
 from sklearn.utils import Bunch, check_random_state
+
+if TYPE_CHECKING:
+    import pysindy as ps
 
 from sk_offwhite._physics import Parameter, PhysicsModel
 from sk_offwhite.datasets._common import (
@@ -169,6 +172,8 @@ def vehicle_dictionary_library() -> ps.CustomLibrary:
     library yields exactly the 12 features
     ``[1, x3, x4, x5, x6, x3^2, x4^2, x5^2, x4 x6, x1 x6, x2 x6, x2 x6^2]`` in this order.
     """
+    import pysindy as ps  # imported when a dictionary is asked for
+
     library = ps.CustomLibrary(
         library_functions=[phi for _, phi, _ in _VEHICLE_TERMS],
         function_names=list(_VEHICLE_TERM_NAMES),
