@@ -167,9 +167,8 @@ def _compressed(free, seeds, problem, *, model, layout):
     if _through_linearisation(seeds.shape[1]):
         r, linear = jax.linearize(fun, free)
         jac = jax.vmap(linear, out_axes=-1)(seeds.T)
-    else:
-        r = fun(free)
-        jac = jax.vmap(lambda t: jax.jvp(fun, (free,), (t,))[1], out_axes=-1)(seeds.T)
+    else:  # the residual comes with the tangents, unbatched: one simulation, not two
+        r, jac = jax.vmap(lambda t: jax.jvp(fun, (free,), (t,)), out_axes=(None, -1))(seeds.T)
     cost = r @ r + majoriser_constant(anchor, problem.omega_free, anchored.weights)
     return r, jac, cost, anchor
 
