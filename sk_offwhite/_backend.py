@@ -61,6 +61,7 @@ def enable_fused_loops(byte_limit: int = FUSED_LOOP_BYTES) -> bool:
         started afterwards are; ``True`` when the option was set now or was already in
         ``XLA_FLAGS`` (then it is left as it is: the application's value wins).
     """
+    global _set_too_late
     if int(byte_limit) <= 0:
         raise ValueError(f"byte_limit must be a positive number of bytes, got {byte_limit!r}.")
     flags = os.environ.get("XLA_FLAGS", "")
@@ -68,7 +69,6 @@ def enable_fused_loops(byte_limit: int = FUSED_LOOP_BYTES) -> bool:
         return True
     os.environ["XLA_FLAGS"] = with_backend_option(flags, f"{_OPTION}={int(byte_limit)}")
     if _backend_started():
-        global _set_too_late
         _set_too_late = True
         warnings.warn(
             "enable_fused_loops: JAX's backend has already started in this process, so its "
@@ -83,8 +83,8 @@ def enable_fused_loops(byte_limit: int = FUSED_LOOP_BYTES) -> bool:
 
 def fused_loops() -> bool:
     """Whether this process's loops are compiled into one kernel: the option of
-    :func:`enable_fused_loops` is in ``XLA_FLAGS``, and was there before JAX started its
-    backend."""
+    :func:`enable_fused_loops` is in ``XLA_FLAGS`` (an application's value is taken as it
+    is), and was there before JAX started its backend."""
     return _OPTION in os.environ.get("XLA_FLAGS", "") and not _set_too_late
 
 

@@ -156,7 +156,7 @@ def test_the_linearisation_and_jacfwd_give_the_same_jacobian(monkeypatch):
     with jax.enable_x64(True):
         for fused in (False, True):  # through jax.linearize, then through jacfwd
             monkeypatch.setattr(optim, "fused_loops", lambda fused=fused: fused)
-            value, jacobian = linearised(simulated, jnp.linspace(0.1, 0.5, 5))
+            _, jacobian = linearised(simulated, jnp.linspace(0.1, 0.5, 5))
             jacobians.append(np.asarray(jacobian))
     assert jacobians[0].shape == (20, 5) and np.abs(jacobians[0]).max() > 0.1
     np.testing.assert_allclose(jacobians[0], jacobians[1], rtol=1e-12, atol=1e-15)
