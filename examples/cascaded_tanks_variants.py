@@ -10,6 +10,10 @@ Variants:
 
 * Torricelli's exponents freed (``a1``, ``a2``, both): the laws the loop may relax when
   they are declared relaxable (``--relax-exponents`` in the main job);
+* the pump's flow a power of its voltage (``k4 u^b``, ``b`` freed from 1), and tanks
+  whose cross-section grows with the level (each level's rate divided by ``1 + c_i x_i``,
+  ``c1``, ``c2`` or both freed from 0): constants of the declared laws, freed as the loop
+  frees a relaxable one;
 * the sensor calibration of degree 3 and 4 instead of 2;
 * the pump acting 1, 2 or 3 samples late (the input delayed, on both records);
 * the overflows' corners fitted (``Overflow(..., fit_corner=True)``) instead of fixed at
@@ -30,6 +34,7 @@ import itertools
 import warnings
 from dataclasses import replace
 
+import jax.numpy as jnp
 import numpy as np
 import pysindy as ps
 
@@ -37,6 +42,7 @@ from sk_offwhite import (
     GreyBoxSparseRegressor,
     Overflow,
     Parameter,
+    PhysicsModel,
     RelaxedLaw,
     SensorCalibration,
     augment,
@@ -50,6 +56,43 @@ from sk_offwhite.loop import (
     fit_continued,
     warm_physics,
 )
+
+FREED_CONSTANTS = {"b": (1.0, (0.2, 3.0)), "c1": (0.0, (-0.05, 1.0)), "c2": (0.0, (-0.05, 1.0))}
+"""The constants of :func:`tanks_rhs` beyond Torricelli's exponents: declared value, bounds."""
+
+
+def tanks_rhs(x, u, theta):
+    r"""Eq. (21) with every constant a variant frees:
+
+    .. math::
+
+        \dot x_1 = \frac{k_4 u^b - k_1 x_1^{a_1}}{1 + c_1 x_1}, \qquad
+        \dot x_2 = \frac{k_2 x_1^{a_1} - k_3 x_2^{a_2}}{1 + c_2 x_2},
+
+    eq. (21) itself at :math:`a_i = 1/2`, :math:`b = 1`, :math:`c_i = 0` (levels floored as
+    in :func:`~sk_offwhite.datasets.safe_sqrt`)."""
+    flow1 = jnp.maximum(x[0], 1e-6) ** theta["a1"]
+    flow2 = jnp.maximum(x[1], 1e-6) ** theta["a2"]
+    inflow = theta["k4"] * jnp.maximum(u[0], 1e-6) ** theta["b"]
+    area1 = 1.0 + theta["c1"] * jnp.maximum(x[0], 0.0)
+    area2 = 1.0 + theta["c2"] * jnp.maximum(x[1], 0.0)
+    upper = (inflow - theta["k1"] * flow1) / area1
+    return jnp.stack([upper, (theta["k2"] * flow1 - theta["k3"] * flow2) / area2])
+
+
+def relaxable_tanks_physics() -> PhysicsModel:
+    """The main job's physics written with :func:`tanks_rhs`, every constant fixed at its
+    declared value and relaxable."""
+    base = cascaded_tanks_physics(fixed={"k4": 0.05}, relaxable_exponents=True)
+    constants = {name: Parameter(value, bounds, fixed=True, relaxable=True)
+                 for name, (value, bounds) in FREED_CONSTANTS.items()}  # fmt: skip
+    return PhysicsModel.from_ode(
+        tanks_rhs, base.sampling_time, output=1, parameters={**base.parameters, **constants},
+        n_states=2, n_inputs=1, method=base.method, x0=base.x0, x0_bounds=(0.0, None),
+        state_names=base.state_names, input_names=base.input_names,
+        output_names=base.output_names, state_kinds=base.state_kinds,
+        input_kinds=base.input_kinds,
+    )  # fmt: skip
 
 
 def started_from(physics, fitted: GreyBoxSparseRegressor, **values):
@@ -122,6 +165,10 @@ def variants(result, declared):
     for names in (("a1",), ("a2",), ("a1", "a2")):
         relaxed = augment(declared, *effects, *(laws[n] for n in names))
         yield "+ exponent " + " and ".join(names) + " freed", relaxed, 0
+    freed = {"pump exponent b": ("b",), "cross-section slope c1": ("c1",),
+             "cross-section slope c2": ("c2",), "both slopes": ("c1", "c2")}  # fmt: skip
+    for label, names in freed.items():
+        yield f"+ {label} freed", augment(declared, *effects, *(laws[n] for n in names)), 0
     for sensor, degree in itertools.product(sensors, (3, 4)):
         others = [e for e in effects if e is not sensor]
         calibration = SensorCalibration(
@@ -162,7 +209,7 @@ def main(argv=None) -> list[dict]:
     enable_fused_loops()
     warnings.simplefilter("ignore")
     data = load_cascaded_tanks()
-    declared = cascaded_tanks_physics(fixed={"k4": 0.05}, relaxable_exponents=True)
+    declared = relaxable_tanks_physics()
     settings = LoopSettings(n_jobs=args.n_jobs)
     library = ps.PolynomialLibrary(degree=2, include_bias=True)
     physics = cascaded_tanks_physics(fixed={"k4": 0.05})
