@@ -58,7 +58,8 @@ from sk_offwhite.loop import (
 )
 
 FREED_CONSTANTS = {"b": (1.0, (0.2, 3.0)), "c1": (0.0, (-0.05, 1.0)), "c2": (0.0, (-0.05, 1.0))}
-"""The constants of :func:`tanks_rhs` beyond Torricelli's exponents: declared value, bounds."""
+"""The constants of :func:`tanks_rhs` beyond Torricelli's exponents: declared value, bounds
+(the slopes' in 1/V, the units of this record's levels)."""
 
 
 def tanks_rhs(x, u, theta):
