@@ -9,7 +9,6 @@ from numbers import Integral, Real
 
 import jax
 import numpy as np
-import optax
 from sklearn.base import BaseEstimator, RegressorMixin, _fit_context, clone
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.metrics import r2_score
@@ -524,15 +523,15 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         return dict(self._fitted_blocks(), theta=self.parameters_, starts=self.initial_states_)
 
     def _optimizer(self):
-        if self.optimizer is not None:
-            if not callable(getattr(self.optimizer, "update", None)):
-                raise TypeError(
-                    "optimizer must be an optax.GradientTransformation (for example "
-                    f"optax.adam(1e-2)), got {self.optimizer!r}."
-                )
-            return self.optimizer
-        schedule = optax.cosine_decay_schedule(1e-2, decay_steps=self.max_iter, alpha=0.01)
-        return optax.chain(optax.clip_by_global_norm(1.0), optax.adam(schedule))
+        """The user's optimizer, checked, or ``None``: the optax loop then builds its
+        default (:func:`~sk_offwhite._optim.default_optimizer`), and a fit that never runs
+        it never imports optax."""
+        if self.optimizer is not None and not callable(getattr(self.optimizer, "update", None)):
+            raise TypeError(
+                "optimizer must be an optax.GradientTransformation (for example "
+                f"optax.adam(1e-2)), got {self.optimizer!r}."
+            )
+        return self.optimizer
 
     def _warn_if_unfinished(self, result) -> None:
         if not np.isfinite(result.cost):

@@ -16,13 +16,12 @@ Jacobian and sparse normal equations.
 from __future__ import annotations
 
 import warnings
-from functools import partial
+from functools import lru_cache, partial
 from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-import optax
 from sklearn.exceptions import ConvergenceWarning
 
 from ._backend import fused_loops
@@ -34,6 +33,7 @@ from ._segments import Segments
 __all__ = [
     "Problem",
     "SolverResult",
+    "default_optimizer",
     "fit_cost",
     "forward_mode",
     "free_residuals",
@@ -455,8 +455,22 @@ def _report(verbose: int, iteration: int, cost: float, extra: float) -> None:
         print(f"[sk_offwhite] iter {iteration:5d}  cost {cost:.6e}  ({extra:.2e})")
 
 
+@lru_cache(maxsize=8)
+def default_optimizer(max_iter: int):
+    """The optax loop's optimizer when none is given: Adam, its step cosine-decayed from
+    1e-2 to 1e-4 over ``max_iter`` iterations, behind clipping of the gradient's global
+    norm to 1. The same object for the same ``max_iter`` (a ``jit`` static argument: fits
+    reuse the compiled iteration). optax is imported here, on the first fit that uses it."""
+    import optax
+
+    schedule = optax.cosine_decay_schedule(1e-2, decay_steps=max_iter, alpha=0.01)
+    return optax.chain(optax.clip_by_global_norm(1.0), optax.adam(schedule))
+
+
 @partial(jax.jit, static_argnames=("model", "layout", "optimizer"))
 def _optax_iteration(free, opt_state, problem, *, model, layout, optimizer):
+    import optax
+
     def cost(f):
         r = free_residuals(f, problem, model, layout)
         return r @ r
@@ -479,12 +493,14 @@ def run_optax(
     patience: int = 100,
     verbose: int = 0,
 ) -> SolverResult:
-    """First-order loop with any optax transformation, keeping the best finite iterate.
+    """First-order loop with any optax transformation (``None``: :func:`default_optimizer`),
+    keeping the best finite iterate.
 
     Stops after ``patience`` iterations without a relative improvement of ``tol`` of the
     best cost. A non-finite cost ends the loop: the best finite iterate is returned and a
     :class:`~sklearn.exceptions.ConvergenceWarning` says so.
     """
+    optimizer = default_optimizer(max_iter) if optimizer is None else optimizer
     static = dict(model=model, layout=layout, optimizer=optimizer)
     free, opt_state = free0, optimizer.init(free0)
     best_free, best_cost, since_best, history = np.asarray(free0), np.inf, 0, []

@@ -1,5 +1,7 @@
 """Fitting behaviour of GreyBoxSparseRegressor on synthetic systems with known truth."""
 
+import subprocess
+import sys
 import warnings
 
 import jax
@@ -9,11 +11,12 @@ import optax
 import pysindy as ps
 import pytest
 from conftest import TANKS_TRUE, TANKS_X0, multisine, simulate_numpy, tanks_physics, tanks_step
+from sklearn.base import clone
 from sklearn.exceptions import ConvergenceWarning
 
 from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel
 from sk_offwhite._layout import Layout
-from sk_offwhite._optim import free_residuals
+from sk_offwhite._optim import _optax_iteration, default_optimizer, free_residuals
 from sk_offwhite._problem import (
     bound_blocks,
     free_blocks,
@@ -164,6 +167,30 @@ def test_optax_solver_decreases_the_cost(tanks_data):
     with pytest.warns(ConvergenceWarning):  # 150 Adam steps do not converge: said, not hidden
         est.fit(u[:300], z[:300])
     assert est.loss_history_[-1] < 0.2 * est.loss_history_[0]
+
+
+def test_the_default_optax_optimizer_is_built_once_and_compiled_once(tanks_data):
+    u, z, _ = tanks_data
+    physics = tanks_physics(x0=[z[0, 0], z[0, 0]])
+    assert default_optimizer(40) is default_optimizer(40)
+    assert default_optimizer(40) is not default_optimizer(41)  # its schedule spans max_iter
+    est = GreyBoxSparseRegressor(physics, solver="optax", max_iter=40)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConvergenceWarning)
+        est.fit(u[:200], z[:200])
+        traced = _optax_iteration._cache_size()
+        clone(est).fit(u[:200], z[:200])
+    assert _optax_iteration._cache_size() == traced  # the clone's fit reused the program
+
+
+def test_a_levenberg_marquardt_fit_does_not_import_optax():
+    code = (
+        "import sys, sk_offwhite; from sk_offwhite.datasets import make_cascaded_tanks;"
+        "d = make_cascaded_tanks(n_samples=100, random_state=0);"
+        "sk_offwhite.GreyBoxSparseRegressor(d.physics, max_iter=5).fit(d.u, d.z);"
+        "assert 'optax' not in sys.modules, 'optax imported'"
+    )
+    subprocess.run([sys.executable, "-W", "ignore", "-c", code], check=True)
 
 
 def test_continuous_time_model_matches_euler_discretisation(tanks_data):
