@@ -43,6 +43,7 @@ __all__ = [
     "lm_loop",
     "majorised_cost",
     "n_residuals",
+    "pushed_forward",
     "run_optax",
 ]
 
@@ -167,23 +168,30 @@ def _through_linearisation(n_tangents: int) -> bool:
     return n_tangents <= LINEARIZE_MAX_FREE and not fused_loops()
 
 
+def pushed_forward(fun, x, tangents):
+    """``(fun(x), J t)`` for each row ``t`` of ``tangents`` (the columns of the result), in
+    one pass: through ``jax.linearize`` or a ``vmap`` of ``jvp``, by
+    :func:`_through_linearisation`. The value comes with the tangents, unbatched: ``fun``
+    is simulated once."""
+    if _through_linearisation(tangents.shape[0]):
+        value, linear = jax.linearize(fun, x)
+        return value, jax.vmap(linear, out_axes=-1)(tangents)
+    return jax.vmap(lambda t: jax.jvp(fun, (x,), (t,)), out_axes=(None, -1))(tangents)
+
+
 def linearised(fun, x, forward: bool = True):
-    """``(fun(x), Jacobian of fun at x)``: forward mode (see :data:`LINEARIZE_MAX_FREE`)
-    or reverse mode (``jacrev``, for problems wider than long). ``fun`` is traced once:
-    its value comes out of the differentiation (``has_aux``), not from a second call."""
+    """``(fun(x), Jacobian of fun at x)``: forward mode (:func:`pushed_forward` of the
+    identity) or reverse mode (``jacrev``, for problems wider than long). ``fun`` is traced
+    once: its value comes out of the differentiation, not from a second call."""
+    if forward:
+        return pushed_forward(fun, x, jnp.eye(x.shape[0], dtype=x.dtype))
 
     def with_value(y):
         value = fun(y)
         return value, value
 
-    if not forward:
-        jac, value = jax.jacrev(with_value, has_aux=True)(x)
-        return value, jac
-    if not _through_linearisation(x.shape[0]):
-        jac, value = jax.jacfwd(with_value, has_aux=True)(x)
-        return value, jac
-    value, linear = jax.linearize(fun, x)
-    return value, jax.vmap(linear, out_axes=-1)(jnp.eye(x.shape[0], dtype=x.dtype))
+    jac, value = jax.jacrev(with_value, has_aux=True)(x)
+    return value, jac
 
 
 def _penalised(r, anchored: Problem):
@@ -322,7 +330,8 @@ def levenberg_marquardt(
 
     def trial(state, damping, scale):  # a NumPy ``scale`` goes in as it is: no conversion
         new, cost, accepted = _lm_advance(_origin(state), damping, scale, True, problem, **static)
-        return new.free, float(cost), new if bool(accepted) else None
+        cost, accepted = jax.device_get((cost, accepted))  # one transfer for both
+        return new.free, float(cost), new if accepted else None
 
     return lm_loop(
         linearise, trial, free0, problem, max_iter=max_iter, tol=tol, verbose=verbose,

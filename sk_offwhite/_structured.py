@@ -26,17 +26,18 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from ._objective import ResidualParts, majoriser_constant, residual_parts
+from ._objective import ResidualParts, residual_parts
 from ._optim import (
     SolverResult,
     _anchored,
     _omega,
-    _through_linearisation,
+    _penalised,
     damped_diagonal,
     free_residuals,
     held_at_bound,
     lm_loop,
     majorised_cost,
+    pushed_forward,
 )
 
 __all__ = ["Colouring", "colouring", "structured_levenberg_marquardt"]
@@ -164,13 +165,8 @@ def _compressed(free, seeds, problem, *, model, layout):
     anchor = _omega(free, problem, layout)
     anchored = _anchored(problem, anchor)
     fun = partial(free_residuals, problem=anchored, model=model, layout=layout)
-    if _through_linearisation(seeds.shape[1]):
-        r, linear = jax.linearize(fun, free)
-        jac = jax.vmap(linear, out_axes=-1)(seeds.T)
-    else:  # the residual comes with the tangents, unbatched: one simulation, not two
-        r, jac = jax.vmap(lambda t: jax.jvp(fun, (free,), (t,)), out_axes=(None, -1))(seeds.T)
-    cost = r @ r + majoriser_constant(anchor, problem.omega_free, anchored.weights)
-    return r, jac, cost, anchor
+    r, jac = pushed_forward(fun, free, seeds.T)
+    return r, jac, _penalised(r, anchored), anchor
 
 
 _cost = jax.jit(majorised_cost, static_argnums=(3, 4))
