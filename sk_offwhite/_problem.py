@@ -15,6 +15,7 @@ import numpy as np
 
 from ._backend import to_device
 from ._layout import Layout
+from ._lm_device import levenberg_marquardt_on_device
 from ._objective import CostWeights
 from ._optim import Problem, SolverResult, levenberg_marquardt, run_optax
 from ._physics import PhysicsModel
@@ -353,8 +354,12 @@ def solve(
     windows = bool(np.any(np.asarray(problem.segments.linked) > 0))
     options = dict(max_iter=max_iter, tol=tol, verbose=verbose)
     if solver == "lm" or (solver == "auto" and (windows or n_free <= LM_MAX_FREE)):
-        coloured = windows and n_free > STRUCTURED_MIN_FREE
-        method = structured_levenberg_marquardt if coloured else levenberg_marquardt
+        if windows and n_free > STRUCTURED_MIN_FREE:
+            method = structured_levenberg_marquardt
+        elif verbose:
+            method = levenberg_marquardt
+        else:
+            method, options = levenberg_marquardt_on_device, dict(max_iter=max_iter, tol=tol)
         return method(free0, problem, model, layout, scaling=lm_scaling, **options)
     return run_optax(free0, problem, model, layout, optimizer, **options)
 

@@ -1,0 +1,165 @@
+r"""Levenberg-Marquardt with its whole run on the device: one program, one dispatch.
+
+:func:`~sk_offwhite._optim.lm_loop` drives the iterations from Python: each trial step is
+one call of the compiled iteration (:func:`~sk_offwhite._optim._lm_advance`), and its cost
+comes back to decide the next damping. On the short records of the closed loop and the
+support path, that call's dispatch and the transfer back cost about what the iteration
+computes. Here the same iterations run inside one ``lax.while_loop``: the same step, the
+same damping updates (divided by :data:`~sk_offwhite._optim.DAMPING_DOWN` after an
+accepted step, multiplied by :data:`~sk_offwhite._optim.DAMPING_UP` after a rejected one)
+and the same stopping rules, in double precision on the device, so the iterates are those
+of the host loop up to rounding. Its first pass evaluates the start (no step), so the
+iteration is traced once, in the loop, as :mod:`sk_offwhite._initial` does for the initial
+state.
+
+The host loop stays for ``verbose`` runs (it prints each iteration) and for the coloured
+Jacobian of :mod:`sk_offwhite._structured`, whose normal equations are sparse.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from ._layout import Layout
+from ._objective import n_fit_residuals
+from ._optim import (
+    DAMPING_DOWN,
+    DAMPING_UP,
+    LM_SCALINGS,
+    MAX_DAMPING,
+    ROUNDING_COST,
+    START_DAMPING,
+    Problem,
+    SolverResult,
+    _creep,
+    _lm_advance,
+    _LMState,
+    _origin,
+    forward_mode,
+    n_residuals,
+)
+from ._rollout import Model
+
+__all__ = ["levenberg_marquardt_on_device"]
+
+OUTCOMES = (
+    "max_iter reached",
+    "relative cost decrease below tol",
+    "cost at rounding level (the data are reproduced)",
+    "no descent step left (stationary point)",
+)
+"""Why a run ended, by the code the device returns (0: it ran out of iterations)."""
+
+
+class _Run(NamedTuple):
+    """The loop's carry: the last accepted state, Marquardt's per-variable scale, the
+    damping, the accepted costs so far (``history[: n_accepted + 1]``), the passes made
+    (the first evaluates the start, each later one is a trial step) and the outcome
+    (an index of :data:`OUTCOMES`, 0 while running)."""
+
+    state: _LMState
+    scale: jax.Array
+    damping: jax.Array
+    history: jax.Array
+    n_accepted: jax.Array
+    passes: jax.Array
+    outcome: jax.Array
+
+
+def _start(free0, n_residuals: int, omega_shape, max_iter: int) -> _Run:
+    """The carry before the first pass, built on the host: a state of the right shapes at
+    ``free0`` with an infinite cost (the first pass replaces it) and ``max_iter + 1``
+    slots of history."""
+    n = free0.shape[0]
+    state = _LMState(
+        free0, np.zeros(n_residuals), np.zeros((n, n)), np.zeros(n), np.array(np.inf),
+        np.zeros(omega_shape), np.zeros(n),
+    )  # fmt: skip
+    history = np.full(max_iter + 1, np.nan)
+    counts = (np.array(0), np.array(0), np.array(0))
+    return _Run(state, np.ones(n), np.array(START_DAMPING), history, *counts)
+
+
+def _outcome(step, accepted, small, damping, new_cost):
+    """The stopping rule that fires on this pass (0: none), as :func:`lm_loop`'s."""
+    converged = step & accepted & small & (damping < 1.0)
+    reproduced = step & accepted & (new_cost <= ROUNDING_COST)
+    stationary = step & ~accepted & (damping * DAMPING_UP > MAX_DAMPING)
+    return jnp.select([converged, reproduced, stationary], [1, 2, 3], 0)
+
+
+def _next_damping(step, accepted, damping):
+    """Marquardt's update after a trial step (none after the start's evaluation)."""
+    updated = jnp.where(accepted, damping / DAMPING_DOWN, damping * DAMPING_UP)
+    return jnp.where(step, updated, damping)
+
+
+def _pass(run: _Run, problem: Problem, tol, *, model, layout, forward, per_variable) -> _Run:
+    """One pass: the start's evaluation (first pass) or a trial step and its verdict."""
+    step = run.passes > 0
+    damping = jnp.where(step, run.damping, 1.0)
+    scale = jnp.where(step, run.scale, 1.0) if per_variable else None
+    static = dict(model=model, layout=layout, forward=forward)
+    new, _, accepted = _lm_advance(_origin(run.state), damping, scale, step, problem, **static)
+    previous = run.state.cost
+    small = previous - new.cost <= tol * jnp.maximum(previous, 1e-300)
+    grown = jnp.where(step, jnp.maximum(run.scale, new.diag), new.diag)
+    n_accepted = run.n_accepted + (accepted & step)
+    return _Run(
+        jax.tree.map(partial(jnp.where, accepted), new, run.state),
+        jnp.where(accepted, grown, run.scale),
+        _next_damping(step, accepted, run.damping),
+        jnp.where(accepted, run.history.at[n_accepted].set(new.cost), run.history),
+        n_accepted,
+        run.passes + 1,
+        _outcome(step, accepted, small, damping, new.cost),
+    )
+
+
+@partial(jax.jit, static_argnames=("model", "layout", "forward", "per_variable"))
+def _run_on_device(start: _Run, problem, tol, *, model, layout, forward, per_variable):
+    """The whole run from ``start`` (:func:`_start`): the start's evaluation, then trial
+    steps until a stopping rule fires or the history is full."""
+    static = dict(model=model, layout=layout, forward=forward, per_variable=per_variable)
+    max_iter = start.history.shape[0] - 1
+
+    def going(run: _Run):
+        return (run.outcome == 0) & (run.passes <= max_iter)
+
+    return jax.lax.while_loop(going, partial(_pass, problem=problem, tol=tol, **static), start)
+
+
+def levenberg_marquardt_on_device(
+    free0,
+    problem: Problem,
+    model: Model,
+    layout: Layout,
+    *,
+    max_iter: int,
+    tol: float,
+    scaling: str = "per-variable",
+) -> SolverResult:
+    r"""Projected Levenberg-Marquardt on :math:`\|r(\cdot)\|^2` (the steps and stopping
+    rules of :func:`~sk_offwhite._optim.lm_loop`), the whole run in one program."""
+    if scaling not in LM_SCALINGS:
+        raise ValueError(f"scaling must be one of {LM_SCALINGS}, got {scaling!r}.")
+    forward = forward_mode(free0, problem, model, layout)
+    omega_shape = dict(layout.blocks).get("omega", (0,))
+    start = _start(free0, n_residuals(free0, problem, model, layout), omega_shape, int(max_iter))
+    per_variable = scaling == "per-variable"
+    static = dict(model=model, layout=layout, forward=forward, per_variable=per_variable)
+    run = _run_on_device(start, problem, tol, **static)
+    run = jax.device_get(run)
+    history = np.asarray(run.history[: int(run.n_accepted) + 1])
+    outcome = int(run.outcome)
+    message = OUTCOMES[outcome] + ("" if outcome else _creep(history))
+    fit_part = np.asarray(run.state.residual)[: n_fit_residuals(problem.segments)]
+    with np.errstate(over="ignore"):
+        fit = float(fit_part @ fit_part)
+    n_iter, free = int(run.passes) - 1, np.asarray(run.state.free)
+    return SolverResult(free, float(history[-1]), history, n_iter, outcome > 0, message, fit)

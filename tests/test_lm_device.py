@@ -1,0 +1,124 @@
+"""Levenberg-Marquardt with the whole run on the device takes the host loop's steps."""
+
+import jax
+import numpy as np
+import pysindy as ps
+import pytest
+from conftest import tanks_physics
+
+from sk_offwhite import GreyBoxSparseRegressor
+from sk_offwhite import _optim as optim
+from sk_offwhite._basis import compile_basis
+from sk_offwhite._layout import Layout
+from sk_offwhite._lm_device import levenberg_marquardt_on_device
+from sk_offwhite._objective import CostWeights
+from sk_offwhite._optim import levenberg_marquardt
+from sk_offwhite._problem import (
+    bound_blocks,
+    build_model,
+    free_blocks,
+    initial_blocks,
+    make_problem,
+)
+from sk_offwhite._segments import make_segments
+
+
+@pytest.fixture(autouse=True)
+def _double_precision():
+    """The estimator fits in double precision; so do these tests."""
+    with jax.enable_x64(True):
+        yield
+
+
+def _problem(tanks_data, with_library: bool, horizon=None, gamma=1e-3):
+    """One record (cut into windows of ``horizon`` samples, if given), optionally with a
+    degree-2 dictionary whose weights start away from the L1 kink."""
+    u, z, _ = tanks_data
+    physics = tanks_physics(x0=[z[0, 0], z[0, 0]])
+    basis = compile_basis(ps.PolynomialLibrary(degree=2), ["x1", "x2", "u0"], 2)
+    basis = basis if with_library else None
+    model = build_model(physics, basis, (0, 1))
+    records = [(u[:400], z[:400])]
+    segments = make_segments(records, horizon)
+    blocks = initial_blocks(physics, basis, model, records, segments, horizon)
+    if with_library:
+        blocks["omega"] = blocks["omega"] + 1e-6
+    else:
+        blocks.pop("omega", None)
+    layout = Layout.from_arrays(blocks)
+    weights = CostWeights(gamma, 1.0, 0.0, 10.0, 1e3)
+    free = free_blocks(physics, basis, model, segments)
+    problem, free0 = make_problem(
+        layout, blocks, free, bound_blocks(physics, blocks), segments, weights
+    )
+    return problem, free0, model, layout
+
+
+@pytest.mark.parametrize(
+    "with_library, scaling, max_iter, horizon",
+    [
+        (False, "per-variable", 100, None),
+        (True, "per-variable", 60, None),
+        (True, "global", 60, None),
+        (True, "per-variable", 3, None),
+        (False, "global", 100, 64),
+    ],
+)
+def test_the_device_run_takes_the_host_loops_steps(
+    tanks_data, with_library, scaling, max_iter, horizon
+):
+    problem, free0, model, layout = _problem(tanks_data, with_library, horizon)
+    options = dict(max_iter=max_iter, tol=1e-10, scaling=scaling)
+    host = levenberg_marquardt(free0, problem, model, layout, **options)
+    device = levenberg_marquardt_on_device(free0, problem, model, layout, **options)
+    assert (device.n_iter, device.converged, device.message) == (
+        host.n_iter,
+        host.converged,
+        host.message,
+    )
+    np.testing.assert_allclose(device.history, host.history, rtol=1e-10)
+    np.testing.assert_allclose(device.free, host.free, rtol=1e-8, atol=1e-12)
+    assert device.cost == device.history[-1]
+    np.testing.assert_allclose(device.fit, host.fit, rtol=1e-10)
+
+
+def test_a_run_from_its_own_solution_stops_as_the_host_loop_does(tanks_data):
+    problem, free0, model, layout = _problem(tanks_data, with_library=False)
+    options = dict(max_iter=200, tol=1e-10)
+    solution = levenberg_marquardt(free0, problem, model, layout, **options).free
+    host = levenberg_marquardt(solution, problem, model, layout, **options)
+    device = levenberg_marquardt_on_device(solution, problem, model, layout, **options)
+    assert device.converged and device.message == host.message
+    assert device.n_iter == host.n_iter
+    np.testing.assert_array_equal(device.free, host.free)
+
+
+def test_the_device_run_names_a_wrong_scaling(tanks_data):
+    problem, free0, model, layout = _problem(tanks_data, with_library=False)
+    with pytest.raises(ValueError, match="scaling must be one of"):
+        levenberg_marquardt_on_device(
+            free0, problem, model, layout, max_iter=5, tol=1e-10, scaling="unit"
+        )
+
+
+def test_a_fit_runs_on_the_device_and_verbose_on_the_host_with_the_same_result(
+    tanks_data, monkeypatch, capsys
+):
+    u, z, _ = tanks_data
+    library = ps.PolynomialLibrary(degree=2)
+    quiet = GreyBoxSparseRegressor(tanks_physics(), library=library, gamma=1e-3, max_iter=50)
+    calls = []
+    host_loop = optim.levenberg_marquardt
+    monkeypatch.setattr(
+        "sk_offwhite._problem.levenberg_marquardt",
+        lambda *a, **k: calls.append(1) or host_loop(*a, **k),
+    )
+    quiet.fit(u[:400], z[:400])
+    assert not calls
+    loud = GreyBoxSparseRegressor(
+        tanks_physics(), library=library, gamma=1e-3, max_iter=50, verbose=1
+    ).fit(u[:400], z[:400])
+    assert calls and "iter" in capsys.readouterr().out
+    assert loud.n_iter_ == quiet.n_iter_
+    np.testing.assert_allclose(loud.coef_, quiet.coef_, rtol=1e-7, atol=1e-12)
+    np.testing.assert_allclose(loud.loss_history_, quiet.loss_history_, rtol=1e-9)
