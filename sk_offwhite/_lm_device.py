@@ -41,7 +41,6 @@ from ._optim import (
     _LMState,
     _origin,
     forward_mode,
-    n_residuals,
 )
 from ._rollout import Model
 
@@ -57,12 +56,15 @@ OUTCOMES = (
 
 
 class _Run(NamedTuple):
-    """The loop's carry: the last accepted state, Marquardt's per-variable scale, the
-    damping, the accepted costs so far (``history[: n_accepted + 1]``), the passes made
-    (the first evaluates the start, each later one is a trial step) and the outcome
-    (an index of :data:`OUTCOMES`, 0 while running)."""
+    """The loop's carry: the last accepted state (its residual left out, an empty array:
+    the loop needs only the fit term :math:`F` of it), :math:`F` there, Marquardt's
+    per-variable scale, the damping, the accepted costs so far
+    (``history[: n_accepted + 1]``), the passes made (the first evaluates the start, each
+    later one is a trial step) and the outcome (an index of :data:`OUTCOMES`, 0 while
+    running)."""
 
     state: _LMState
+    fit: jax.Array
     scale: jax.Array
     damping: jax.Array
     history: jax.Array
@@ -71,18 +73,18 @@ class _Run(NamedTuple):
     outcome: jax.Array
 
 
-def _start(free0, n_residuals: int, omega_shape, max_iter: int) -> _Run:
+def _start(free0, omega_shape, max_iter: int) -> _Run:
     """The carry before the first pass, built on the host: a state of the right shapes at
     ``free0`` with an infinite cost (the first pass replaces it) and ``max_iter + 1``
     slots of history."""
     n = free0.shape[0]
     state = _LMState(
-        free0, np.zeros(n_residuals), np.zeros((n, n)), np.zeros(n), np.array(np.inf),
+        free0, np.zeros(0), np.zeros((n, n)), np.zeros(n), np.array(np.inf),
         np.zeros(omega_shape), np.zeros(n),
     )  # fmt: skip
     history = np.full(max_iter + 1, np.nan)
     counts = (np.array(0), np.array(0), np.array(0))
-    return _Run(state, np.ones(n), np.array(START_DAMPING), history, *counts)
+    return _Run(state, np.array(np.nan), np.ones(n), np.array(START_DAMPING), history, *counts)
 
 
 def _outcome(step, accepted, small, damping, new_cost):
@@ -106,12 +108,15 @@ def _pass(run: _Run, problem: Problem, tol, *, model, layout, forward, per_varia
     scale = jnp.where(step, run.scale, 1.0) if per_variable else None
     static = dict(model=model, layout=layout, forward=forward)
     new, _, accepted = _lm_advance(_origin(run.state), damping, scale, step, problem, **static)
+    fit_part = new.residual[: n_fit_residuals(problem.segments)]
+    new = new._replace(residual=run.state.residual)
     previous = run.state.cost
     small = previous - new.cost <= tol * jnp.maximum(previous, 1e-300)
     grown = jnp.where(step, jnp.maximum(run.scale, new.diag), new.diag)
     n_accepted = run.n_accepted + (accepted & step)
     return _Run(
         jax.tree.map(partial(jnp.where, accepted), new, run.state),
+        jnp.where(accepted, fit_part @ fit_part, run.fit),
         jnp.where(accepted, grown, run.scale),
         _next_damping(step, accepted, run.damping),
         jnp.where(accepted, run.history.at[n_accepted].set(new.cost), run.history),
@@ -150,7 +155,7 @@ def levenberg_marquardt_on_device(
         raise ValueError(f"scaling must be one of {LM_SCALINGS}, got {scaling!r}.")
     forward = forward_mode(free0, problem, model, layout)
     omega_shape = dict(layout.blocks).get("omega", (0,))
-    start = _start(free0, n_residuals(free0, problem, model, layout), omega_shape, int(max_iter))
+    start = _start(free0, omega_shape, int(max_iter))
     per_variable = scaling == "per-variable"
     static = dict(model=model, layout=layout, forward=forward, per_variable=per_variable)
     run = _run_on_device(start, problem, tol, **static)
@@ -158,8 +163,6 @@ def levenberg_marquardt_on_device(
     history = np.asarray(run.history[: int(run.n_accepted) + 1])
     outcome = int(run.outcome)
     message = OUTCOMES[outcome] + ("" if outcome else _creep(history))
-    fit_part = np.asarray(run.state.residual)[: n_fit_residuals(problem.segments)]
-    with np.errstate(over="ignore"):
-        fit = float(fit_part @ fit_part)
     n_iter, free = int(run.passes) - 1, np.asarray(run.state.free)
-    return SolverResult(free, float(history[-1]), history, n_iter, outcome > 0, message, fit)
+    cost = float(history[-1])
+    return SolverResult(free, cost, history, n_iter, outcome > 0, message, float(run.fit))
