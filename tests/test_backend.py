@@ -137,7 +137,7 @@ COMPILED = (
 
 def test_a_first_fit_compiles_no_single_operation_programs():
     names = json.loads(_run(COMPILED, None))
-    assert {"jit(_lm_advance)", "jit(free_run)"} <= set(names), names
+    assert {"jit(_run_on_device)", "jit(free_run)"} <= set(names), names
     single = {"jit(stage)", "jit(convert_element_type)", "jit(broadcast_in_dim)", "jit(sqrt)"}
     assert not single & set(names), names
     assert len(names) <= 6, names

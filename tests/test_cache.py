@@ -70,15 +70,15 @@ def test_release_drops_the_compiled_programs_of_a_fit():
     import numpy as np
 
     from sk_offwhite import GreyBoxSparseRegressor, release_compiled_programs
-    from sk_offwhite._optim import _lm_advance
+    from sk_offwhite._lm_device import _run_on_device
     from sk_offwhite.datasets import make_leaky_tank
 
     tank = make_leaky_tank(n_samples=100, random_state=0)
     est = GreyBoxSparseRegressor(tank.physics, max_iter=5).fit(tank.u, tank.z)
     before = est.predict(tank.u)
-    assert _lm_advance._cache_size() > 0
+    assert _run_on_device._cache_size() > 0
     release_compiled_programs()
-    assert _lm_advance._cache_size() == 0
+    assert _run_on_device._cache_size() == 0
     np.testing.assert_array_equal(est.predict(tank.u), before)  # compiled again on demand
 
 
@@ -87,16 +87,16 @@ def test_releasing_the_package_programs_keeps_the_applications_own():
     import jax.numpy as jnp
 
     from sk_offwhite import GreyBoxSparseRegressor, release_package_programs
-    from sk_offwhite._optim import _lm_advance
+    from sk_offwhite._lm_device import _run_on_device
     from sk_offwhite.datasets import make_leaky_tank
 
     data = make_leaky_tank(n_samples=100, random_state=0)
     GreyBoxSparseRegressor(data.physics, max_iter=5).fit(data.u, data.z)
     mine = jax.jit(lambda x: 2.0 * x)
     mine(jnp.ones(3))
-    assert _lm_advance._cache_size() > 0
+    assert _run_on_device._cache_size() > 0
     assert release_package_programs() >= 5
-    assert _lm_advance._cache_size() == 0 and mine._cache_size() == 1
+    assert _run_on_device._cache_size() == 0 and mine._cache_size() == 1
 
 
 def test_the_residual_count_needs_no_trace_when_the_record_outnumbers_the_variables(caplog):
@@ -113,7 +113,7 @@ def test_the_residual_count_needs_no_trace_when_the_record_outnumbers_the_variab
                 data.u[:n_samples], data.z[:n_samples]
             )
     messages = [r.getMessage() for r in caplog.records]
-    assert any("tracing _lm_advance" in m for m in messages)  # the log is read
+    assert any("tracing _run_on_device" in m for m in messages)  # the log is read
     assert not [m for m in messages if "tracing free_residuals" in m]
 
 

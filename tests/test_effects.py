@@ -24,7 +24,7 @@ from sk_offwhite._effects import (
     switched,
     switches,
 )
-from sk_offwhite._optim import _lm_advance
+from sk_offwhite._lm_device import _run_on_device
 from sk_offwhite._problem import build_model
 from sk_offwhite._rollout import free_run
 from sk_offwhite.datasets import cascaded_tanks_physics, make_cascaded_tanks, make_coulomb_drive
@@ -241,8 +241,8 @@ def test_effect_sets_on_one_switchboard_compile_the_solver_once():
     sizes = []
     for on in ([effects[0]], [effects[1], effects[2]], effects):
         GreyBoxSparseRegressor(board.model(on), max_iter=3).fit(data.u, data.z)
-        sizes.append(_lm_advance._cache_size())
-    assert sizes[0] == sizes[1] == sizes[2]
+        sizes.append(_run_on_device._cache_size())
+    assert 0 < sizes[0] == sizes[1] == sizes[2]
     with pytest.raises(ValueError, match="not among the candidates"):
         board.model([Leak(0)])
 
