@@ -16,9 +16,10 @@ prints (and writes ``bench_speed.md`` / ``.json`` in ``--out``, default
   again in that process), min and median, with its JAX version and simulation MSE.
 * **per step** — microseconds per simulated step of what the solver runs: one
   Levenberg-Marquardt iteration (one program: the damped step, the candidate's simulation
-  and, when it is accepted, the Jacobian there), accepted and rejected, and the plain
-  forward rollout, physics only and with a 10-term dictionary, at 10³ and 10⁴ samples; min
-  and median of interleaved repeats.
+  and, when it is accepted, the Jacobian there), accepted and rejected, called from
+  Python; per pass of a whole run on the device (what a fit runs: the same iterations in
+  one program); and the plain forward rollout, physics only and with a 10-term
+  dictionary, at 10³ and 10⁴ samples; min and median of interleaved repeats.
 * **grid against one fit** — ``fit_gamma_path`` over 8 values of γ with 3 contiguous
   folds, and ``GridSearchCV`` over the same γ and folds, against one fit at one γ, all
   after a warm-up (and the first path cold).
@@ -226,13 +227,17 @@ def _timed(function, repeats: int) -> list[float]:
 
 
 def _solver_programs(model, layout, problem, free0) -> dict:
-    """Zero-argument calls of the solver's program, one iteration (a damped step, the
-    candidate's simulation and, when it is accepted, the state there, Jacobian included;
-    the current cost is set to ``inf`` or ``-inf`` so that the candidate is accepted or
-    rejected), and of the forward rollout."""
+    """Zero-argument calls of the solver's programs with the passes each makes: one
+    iteration (a damped step, the candidate's simulation and, when it is accepted, the
+    state there, Jacobian included; the current cost is set to ``inf`` or ``-inf`` so that
+    the candidate is accepted or rejected), a whole run on the device (``RUN_PASSES`` - 1
+    trial steps after the start's evaluation, ``tol=0`` so that no rule stops it sooner
+    unless the cost reaches rounding or no descent step is left), and the forward
+    rollout."""
     import jax
     import numpy as np
 
+    from sk_offwhite._lm_device import levenberg_marquardt_on_device
     from sk_offwhite._optim import _lm_advance, _origin, first_state, free_residuals
 
     static = dict(model=model, layout=layout, forward=True)
@@ -243,15 +248,31 @@ def _solver_programs(model, layout, problem, free0) -> dict:
         origin = (*_origin(state)[:-1], np.array(current_cost))
         return lambda: _lm_advance(origin, 1e-3, state.diag, True, problem, **static)
 
+    def run():
+        options = dict(max_iter=RUN_PASSES - 1, tol=0.0)
+        return levenberg_marquardt_on_device(free0, problem, model, layout, **options).free
+
+    passes = (
+        levenberg_marquardt_on_device(
+            free0, problem, model, layout, max_iter=RUN_PASSES - 1, tol=0.0
+        ).n_iter
+        + 1
+    )
     return {
-        "LM iteration, accepted": iteration(np.inf),
-        "LM iteration, rejected": iteration(-np.inf),
-        "forward": lambda: forward(free0, problem, model=model, layout=layout),
+        "LM iteration, accepted": (iteration(np.inf), 1),
+        "LM iteration, rejected": (iteration(-np.inf), 1),
+        "LM run on the device, per pass": (run, passes),
+        "forward": (lambda: forward(free0, problem, model=model, layout=layout), 1),
     }
 
 
+RUN_PASSES = 40
+"""Passes of the timed device run (its first evaluates the start)."""
+
+
 def per_step(repeats: int) -> list[dict]:
-    """µs per step of a Levenberg-Marquardt iteration and of a forward rollout."""
+    """µs per step of a Levenberg-Marquardt iteration, of a pass of a whole run and of a
+    forward rollout."""
     import jax
     import pysindy as ps
 
@@ -263,17 +284,18 @@ def per_step(repeats: int) -> list[dict]:
                 programs = _solver_programs(model, layout, problem, free0)
                 times = {k: [] for k in programs}
                 for _ in range(3):  # interleaved
-                    for key, program in programs.items():
+                    for key, (program, _) in programs.items():
                         times[key] += _timed(program, repeats)
                 for key, values in times.items():
+                    steps = n_samples * programs[key][1]
                     rows.append(
                         {
                             "samples": n_samples,
                             "model": label,
                             "free": int(free0.shape[0]),
                             "program": key,
-                            "us_per_step_min": 1e6 * min(values) / n_samples,
-                            "us_per_step_median": 1e6 * statistics.median(values) / n_samples,
+                            "us_per_step_min": 1e6 * min(values) / steps,
+                            "us_per_step_median": 1e6 * statistics.median(values) / steps,
                         }
                     )
     return rows

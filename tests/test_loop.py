@@ -478,13 +478,13 @@ def test_the_candidate_cap_counts_mechanisms_with_all_their_variants():
     assert _capped(candidates, None) == candidates
 
 
-def test_a_hypothesis_takes_its_regions_sign_only_where_the_region_agrees_on_it():
+def test_a_hypothesis_takes_the_sign_where_its_correction_agrees_most_on_it():
     state = np.linspace(1.0, 2.0, 10)
     signals = {"s": np.arange(10.0)}
     region = ("s", 0.0, 3.0)  # the first four samples
     agreeing = np.array([-1.0, -1.0, -1.0, -1.0, 1, 1, 1, 1, 1, 1])
     assert _sign(agreeing, state, signals, region) == -1  # the region's, not the record's
     cancelling = np.array([-1.0, 1.0, -1.0, 0.8, 1, 1, 1, 1, 1, 1])  # region net < 0
-    assert _sign(cancelling, state, signals, region) == 1  # left to rounding: the record's
+    assert _sign(cancelling, state, signals, region) == 1  # the record agrees more
     assert _sign(-cancelling, state, signals, None) == -1
     assert _sign(np.zeros(10), state, signals, region) == 1

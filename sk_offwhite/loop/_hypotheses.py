@@ -139,27 +139,28 @@ def _sentence(equation, variables, sign, region, one_signed=True) -> str:
     return text + "."
 
 
-SIGN_AGREEMENT = 0.5
-r"""How much of its absolute weight :math:`\sum_k|\delta_k x_k|` the net weight of the
-region where a correction acts must keep for its sign to be the region's (:func:`_sign`)."""
+def _agreement(weight: np.ndarray) -> float:
+    """How much of its absolute weight the net weight keeps, in [0, 1] (0 for no weight)."""
+    total = np.sum(np.abs(weight))
+    return float(abs(np.sum(weight)) / total) if total > 0 else 0.0
 
 
 def _sign(delta: np.ndarray, state: np.ndarray, signals: dict, region) -> int:
-    r"""Sign of :math:`\sum_k \delta_k x_k`: in the region where the correction acts, if
-    any, when the region agrees on it (its net weight at least :data:`SIGN_AGREEMENT` of
-    its absolute weight), else over the whole record.
+    r"""Sign of :math:`\sum_k \delta_k x_k` over the samples that agree most on it: those of
+    the region where the correction acts, if any, unless the whole record's net weight is
+    a larger share of its absolute weight :math:`\sum_k|\delta_k x_k|` (:func:`_agreement`).
 
     ``-1``: the correction drives the state toward zero (for a level: removes from it);
-    ``+1``: away from zero. In a region where the terms of both signs cancel, the net is
-    left to rounding (measured on the noise-free vehicle: 15 % of the region's absolute
-    weight, a sign that XLA's threading options flipped), while the record's is 68 %.
+    ``+1``: away from zero. Where the terms of both signs cancel, the net is left to
+    rounding: on the noise-free vehicle the region keeps 15 % of its weight and its sign
+    flipped with XLA's threading options, while the record keeps 68 %.
     """
     weight = delta * state
     if region is not None:
         name, low, high = region
         inside = weight[(signals[name] >= low) & (signals[name] <= high)]
-        if abs(np.sum(inside)) >= SIGN_AGREEMENT * np.sum(np.abs(inside)) > 0:
-            return int(np.sign(np.sum(inside)))
+        if inside.size and _agreement(inside) >= _agreement(weight):
+            weight = inside
     return int(np.sign(np.sum(weight)) or 1)
 
 
