@@ -3,7 +3,10 @@ r"""Solvers for the multi-step cost: Levenberg-Marquardt and optax first-order l
 Both work on the flat vector of free decision variables and project onto the box bounds
 after every step. Each iteration is one jitted call, traced once per fit (the model and
 the layout are static arguments, data and weights are dynamic), so the Python loop only
-keeps the best finite iterate, the loss history and the stopping rules.
+keeps the best finite iterate, the loss history and the stopping rules. A quiet
+Levenberg-Marquardt fit runs the same iterations and rules inside one program
+(:mod:`~sk_offwhite._lm_device`); the Python loop :func:`lm_loop` drives ``verbose`` runs
+and the coloured Jacobian of :mod:`~sk_offwhite._structured`.
 
 Derivatives: Levenberg-Marquardt needs the residual Jacobian :math:`J` (``R x P``); it is
 built in forward mode (``jacfwd``) when ``P <= R`` (few parameters, long records: the usual

@@ -346,7 +346,9 @@ def solve(
     windows or up to :data:`LM_MAX_FREE` free variables, and the optax loop (reverse-mode
     gradients) for larger problems without windows. With windows and more than
     :data:`STRUCTURED_MIN_FREE` free variables, Levenberg-Marquardt uses the coloured
-    Jacobian and sparse normal equations of :mod:`~sk_offwhite._structured`.
+    Jacobian and sparse normal equations of :mod:`~sk_offwhite._structured`; otherwise
+    the whole run is one program (:mod:`~sk_offwhite._lm_device`), or, with ``verbose``,
+    the Python loop that prints each iteration.
     ``lm_scaling`` is Levenberg-Marquardt's rule for :math:`D`
     (:func:`~sk_offwhite._optim.damped_diagonal`).
     """
