@@ -16,6 +16,8 @@ Variants:
   frees a relaxable one;
 * the sensor calibration of degree 3 and 4 instead of 2;
 * the pump acting 1, 2 or 3 samples late (the input delayed, on both records);
+* the same ODE integrated more accurately than eq. (21)'s one Euler step per sample (4
+  Euler sub-steps, one RK4 step): is the discretisation part of what the model misses?
 * the overflows' corners fitted (``Overflow(..., fit_corner=True)``) instead of fixed at
   2.5 % of each level's spread;
 * multiple starts of the effects' levels and fraction (``--starts``): does the fit end in
@@ -81,15 +83,17 @@ def tanks_rhs(x, u, theta):
     return jnp.stack([upper, (theta["k2"] * flow1 - theta["k3"] * flow2) / area2])
 
 
-def relaxable_tanks_physics() -> PhysicsModel:
+def relaxable_tanks_physics(method: str | None = None, n_substeps: int = 1) -> PhysicsModel:
     """The main job's physics written with :func:`tanks_rhs`, every constant fixed at its
-    declared value and relaxable."""
+    declared value and relaxable; integrated by one explicit-Euler step per sample as eq.
+    (21), or by ``n_substeps`` steps of ``method`` (``"euler"`` or ``"rk4"``)."""
     base = cascaded_tanks_physics(fixed={"k4": 0.05}, relaxable_exponents=True)
     constants = {name: Parameter(value, bounds, fixed=True, relaxable=True)
                  for name, (value, bounds) in FREED_CONSTANTS.items()}  # fmt: skip
     return PhysicsModel.from_ode(
         tanks_rhs, base.sampling_time, output=1, parameters={**base.parameters, **constants},
-        n_states=2, n_inputs=1, method=base.method, x0=base.x0, x0_bounds=(0.0, None),
+        n_states=2, n_inputs=1, method=method or base.method, n_substeps=n_substeps,
+        x0=base.x0, x0_bounds=(0.0, None),
         state_names=base.state_names, input_names=base.input_names,
         output_names=base.output_names, state_kinds=base.state_kinds,
         input_kinds=base.input_kinds,
@@ -178,6 +182,9 @@ def variants(result, declared):
         yield f"sensor calibration of degree {degree}", augment(declared, *others, calibration), 0
     for delay in (1, 2, 3):
         yield f"pump {delay} sample(s) late", augment(declared, *effects), delay
+    for label, method, n_substeps in (("4 Euler sub-steps", "euler", 4), ("an RK4 step", "rk4", 1)):
+        integrated = relaxable_tanks_physics(method, n_substeps)
+        yield f"the ODE integrated by {label}", augment(integrated, *effects), 0
     sharp = [e.replace(fit_corner=True) if isinstance(e, Overflow) else e for e in effects]
     yield "overflows' corners fitted", augment(declared, *sharp), 0
 

@@ -26,7 +26,7 @@ EXAMPLES = {
 }
 NOT_RUN = {
     "cascaded_tanks_variants.py": (
-        "a study of the main job's model: the whole loop (25-30 s) and then 14 variants, "
+        "a study of the main job's model: the whole loop (25-30 s) and then 16 variants, "
         "each cross-validated (about 3 min on 2 cores), beyond the suite's budget; what it "
         "calls are the loop's own public functions (close_the_loop, fit_continued, "
         "held_out_rmse), exercised by test_loop.py"
