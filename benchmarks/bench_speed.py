@@ -250,18 +250,12 @@ def _solver_programs(model, layout, problem, free0) -> dict:
 
     def run():
         options = dict(max_iter=RUN_PASSES - 1, tol=0.0)
-        return levenberg_marquardt_on_device(free0, problem, model, layout, **options).free
+        return levenberg_marquardt_on_device(free0, problem, model, layout, **options)
 
-    passes = (
-        levenberg_marquardt_on_device(
-            free0, problem, model, layout, max_iter=RUN_PASSES - 1, tol=0.0
-        ).n_iter
-        + 1
-    )
     return {
         "LM iteration, accepted": (iteration(np.inf), 1),
         "LM iteration, rejected": (iteration(-np.inf), 1),
-        "LM run on the device, per pass": (run, passes),
+        "LM run on the device, per pass": (lambda: run().free, run().n_iter + 1),
         "forward": (lambda: forward(free0, problem, model=model, layout=layout), 1),
     }
 

@@ -30,7 +30,6 @@ from ._objective import n_fit_residuals
 from ._optim import (
     DAMPING_DOWN,
     DAMPING_UP,
-    LM_SCALINGS,
     MAX_DAMPING,
     ROUNDING_COST,
     START_DAMPING,
@@ -40,7 +39,9 @@ from ._optim import (
     _lm_advance,
     _LMState,
     _origin,
+    checked_scaling,
     forward_mode,
+    levenberg_marquardt,
 )
 from ._rollout import Model
 
@@ -147,16 +148,20 @@ def levenberg_marquardt_on_device(
     *,
     max_iter: int,
     tol: float,
+    verbose: int = 0,
     scaling: str = "per-variable",
 ) -> SolverResult:
     r"""Projected Levenberg-Marquardt on :math:`\|r(\cdot)\|^2` (the steps and stopping
-    rules of :func:`~sk_offwhite._optim.lm_loop`), the whole run in one program."""
-    if scaling not in LM_SCALINGS:
-        raise ValueError(f"scaling must be one of {LM_SCALINGS}, got {scaling!r}.")
+    rules of :func:`~sk_offwhite._optim.lm_loop`), the whole run in one program; a
+    ``verbose`` run goes through the host loop
+    (:func:`~sk_offwhite._optim.levenberg_marquardt`), which prints each iteration."""
+    if verbose:
+        options = dict(max_iter=max_iter, tol=tol, verbose=verbose, scaling=scaling)
+        return levenberg_marquardt(free0, problem, model, layout, **options)
     forward = forward_mode(free0, problem, model, layout)
     omega_shape = dict(layout.blocks).get("omega", (0,))
     start = _start(free0, omega_shape, int(max_iter))
-    per_variable = scaling == "per-variable"
+    per_variable = checked_scaling(scaling) == "per-variable"
     static = dict(model=model, layout=layout, forward=forward, per_variable=per_variable)
     run = _run_on_device(start, problem, tol, **static)
     run = jax.device_get(run)

@@ -145,6 +145,13 @@ LM_SCALINGS = ("per-variable", "global")
 """The rules for the floor of Marquardt's scaling :math:`D` (:func:`damped_diagonal`)."""
 
 
+def checked_scaling(scaling: str) -> str:
+    """``scaling`` if it is one of :data:`LM_SCALINGS`, else a ``ValueError``."""
+    if scaling not in LM_SCALINGS:
+        raise ValueError(f"scaling must be one of {LM_SCALINGS}, got {scaling!r}.")
+    return scaling
+
+
 def _omega(free, problem: Problem, layout: Layout):
     r""":math:`\Omega` at the free vector ``free`` (an empty array without a dictionary)."""
     params = layout.unflatten(problem.base.at[problem.free_index].set(free))
@@ -405,9 +412,7 @@ def lm_loop(
     under heavy damping only means the step was short, not that the fit has converged.
     """
     state = linearise(free0)
-    if scaling not in LM_SCALINGS:
-        raise ValueError(f"scaling must be one of {LM_SCALINGS}, got {scaling!r}.")
-    scale = np.asarray(state.diag) if scaling == "per-variable" else None
+    scale = np.asarray(state.diag) if checked_scaling(scaling) == "per-variable" else None
     damping = START_DAMPING
     history, message, converged = [float(state.cost)], "max_iter reached", False
     for iteration in range(1, max_iter + 1):

@@ -17,7 +17,7 @@ from ._backend import to_device
 from ._layout import Layout
 from ._lm_device import levenberg_marquardt_on_device
 from ._objective import CostWeights
-from ._optim import Problem, SolverResult, levenberg_marquardt, run_optax
+from ._optim import Problem, SolverResult, run_optax
 from ._physics import PhysicsModel
 from ._rollout import Model, free_run
 from ._segments import Segments, make_segments
@@ -347,8 +347,8 @@ def solve(
     gradients) for larger problems without windows. With windows and more than
     :data:`STRUCTURED_MIN_FREE` free variables, Levenberg-Marquardt uses the coloured
     Jacobian and sparse normal equations of :mod:`~sk_offwhite._structured`; otherwise
-    the whole run is one program (:mod:`~sk_offwhite._lm_device`), or, with ``verbose``,
-    the Python loop that prints each iteration.
+    the whole run is one program (:mod:`~sk_offwhite._lm_device`; with ``verbose``, the
+    Python loop that prints each iteration).
     ``lm_scaling`` is Levenberg-Marquardt's rule for :math:`D`
     (:func:`~sk_offwhite._optim.damped_diagonal`).
     """
@@ -356,12 +356,8 @@ def solve(
     windows = bool(np.any(np.asarray(problem.segments.linked) > 0))
     options = dict(max_iter=max_iter, tol=tol, verbose=verbose)
     if solver == "lm" or (solver == "auto" and (windows or n_free <= LM_MAX_FREE)):
-        if windows and n_free > STRUCTURED_MIN_FREE:
-            method = structured_levenberg_marquardt
-        elif verbose:
-            method = levenberg_marquardt
-        else:
-            method, options = levenberg_marquardt_on_device, dict(max_iter=max_iter, tol=tol)
+        coloured = windows and n_free > STRUCTURED_MIN_FREE
+        method = structured_levenberg_marquardt if coloured else levenberg_marquardt_on_device
         return method(free0, problem, model, layout, scaling=lm_scaling, **options)
     return run_optax(free0, problem, model, layout, optimizer, **options)
 

@@ -131,3 +131,37 @@ def tanks_data():
     u = multisine(1024, np.random.default_rng(0))
     states = simulate_numpy(tanks_step, TANKS_TRUE, TANKS_X0, u)
     return u, states[:, 1:2], states
+
+
+def solver_problem(physics, records, horizon, with_library: bool, omega_start: float):
+    """What the solvers take for ``physics`` fitted to ``records`` (cut into windows of
+    ``horizon`` samples, if given), with a degree-2 dictionary whose weights all start at
+    ``omega_start`` (off the L1 kink) or none: ``(problem, free0, model, layout)``."""
+    import pysindy as ps
+
+    from sk_offwhite._basis import compile_basis
+    from sk_offwhite._layout import Layout
+    from sk_offwhite._objective import CostWeights
+    from sk_offwhite._problem import (
+        bound_blocks,
+        build_model,
+        free_blocks,
+        initial_blocks,
+        make_problem,
+    )
+    from sk_offwhite._segments import make_segments
+
+    library = ps.PolynomialLibrary(degree=2) if with_library else None
+    basis = None if library is None else compile_basis(library, ["x1", "x2", "u0"], 2)
+    model = build_model(physics, basis, (0, 1))
+    segments = make_segments(records, horizon)
+    blocks = initial_blocks(physics, basis, model, records, segments, horizon)
+    blocks["omega"] = blocks.get("omega", np.zeros(0)) + omega_start
+    blocks = {k: v for k, v in blocks.items() if np.size(v) or k != "omega"}
+    layout = Layout.from_arrays(blocks)
+    weights = CostWeights(1e-3, 1.0, 0.0, 10.0, 1e3)
+    free = free_blocks(physics, basis, model, segments)
+    problem, free0 = make_problem(
+        layout, blocks, free, bound_blocks(physics, blocks), segments, weights
+    )
+    return problem, free0, model, layout

@@ -4,23 +4,12 @@ import jax
 import numpy as np
 import pysindy as ps
 import pytest
-from conftest import tanks_physics
+from conftest import solver_problem, tanks_physics
 
 from sk_offwhite import GreyBoxSparseRegressor
 from sk_offwhite import _optim as optim
-from sk_offwhite._basis import compile_basis
-from sk_offwhite._layout import Layout
 from sk_offwhite._lm_device import levenberg_marquardt_on_device
-from sk_offwhite._objective import CostWeights
 from sk_offwhite._optim import levenberg_marquardt
-from sk_offwhite._problem import (
-    bound_blocks,
-    build_model,
-    free_blocks,
-    initial_blocks,
-    make_problem,
-)
-from sk_offwhite._segments import make_segments
 
 
 @pytest.fixture(autouse=True)
@@ -30,28 +19,12 @@ def _double_precision():
         yield
 
 
-def _problem(tanks_data, with_library: bool, horizon=None, gamma=1e-3):
+def _problem(tanks_data, with_library: bool, horizon=None):
     """One record (cut into windows of ``horizon`` samples, if given), optionally with a
-    degree-2 dictionary whose weights start away from the L1 kink."""
+    degree-2 dictionary whose weights start just off zero (away from the L1 kink)."""
     u, z, _ = tanks_data
     physics = tanks_physics(x0=[z[0, 0], z[0, 0]])
-    basis = compile_basis(ps.PolynomialLibrary(degree=2), ["x1", "x2", "u0"], 2)
-    basis = basis if with_library else None
-    model = build_model(physics, basis, (0, 1))
-    records = [(u[:400], z[:400])]
-    segments = make_segments(records, horizon)
-    blocks = initial_blocks(physics, basis, model, records, segments, horizon)
-    if with_library:
-        blocks["omega"] = blocks["omega"] + 1e-6
-    else:
-        blocks.pop("omega", None)
-    layout = Layout.from_arrays(blocks)
-    weights = CostWeights(gamma, 1.0, 0.0, 10.0, 1e3)
-    free = free_blocks(physics, basis, model, segments)
-    problem, free0 = make_problem(
-        layout, blocks, free, bound_blocks(physics, blocks), segments, weights
-    )
-    return problem, free0, model, layout
+    return solver_problem(physics, [(u[:400], z[:400])], horizon, with_library, 1e-6)
 
 
 @pytest.mark.parametrize(
@@ -110,7 +83,7 @@ def test_a_fit_runs_on_the_device_and_verbose_on_the_host_with_the_same_result(
     calls = []
     host_loop = optim.levenberg_marquardt
     monkeypatch.setattr(
-        "sk_offwhite._problem.levenberg_marquardt",
+        "sk_offwhite._lm_device.levenberg_marquardt",
         lambda *a, **k: calls.append(1) or host_loop(*a, **k),
     )
     quiet.fit(u[:400], z[:400])

@@ -6,16 +6,13 @@ from functools import partial
 import jax
 import jax.numpy as jnp
 import numpy as np
-import pysindy as ps
 import pytest
-from conftest import tanks_physics
+from conftest import solver_problem, tanks_physics
 from sklearn.exceptions import ConvergenceWarning
 
 from sk_offwhite import GreyBoxSparseRegressor
 from sk_offwhite import _optim as optim
-from sk_offwhite._basis import compile_basis
-from sk_offwhite._layout import Layout
-from sk_offwhite._objective import CostWeights, residual_parts
+from sk_offwhite._objective import residual_parts
 from sk_offwhite._optim import (
     LINEARIZE_MAX_FREE,
     _anchored,
@@ -31,14 +28,6 @@ from sk_offwhite._optim import (
     majorised_cost,
     n_residuals,
 )
-from sk_offwhite._problem import (
-    bound_blocks,
-    build_model,
-    free_blocks,
-    initial_blocks,
-    make_problem,
-)
-from sk_offwhite._segments import make_segments
 from sk_offwhite._sparsity import block_columns
 from sk_offwhite._structured import (
     _compressed,
@@ -61,21 +50,8 @@ def _windowed_problem(tanks_data, with_library: bool, horizon=16):
     u, z, _ = tanks_data
     physics = tanks_physics(x0=[z[0, 0], z[0, 0]])
     physics.inequality = lambda x, u, theta: -x
-    library = ps.PolynomialLibrary(degree=2) if with_library else None
-    basis = None if library is None else compile_basis(library, ["x1", "x2", "u0"], 2)
-    model = build_model(physics, basis, (0, 1))
     records = [(u[:150], z[:150]), (u[200:330], z[200:330])]
-    segments = make_segments(records, horizon)
-    blocks = initial_blocks(physics, basis, model, records, segments, horizon)
-    blocks["omega"] = blocks.get("omega", np.zeros(0)) + 1e-3  # away from the L1 kink
-    blocks = {k: v for k, v in blocks.items() if np.size(v) or k != "omega"}
-    layout = Layout.from_arrays(blocks)
-    weights = CostWeights(1e-3, 1.0, 0.0, 10.0, 1e3)
-    free = free_blocks(physics, basis, model, segments)
-    problem, free0 = make_problem(
-        layout, blocks, free, bound_blocks(physics, blocks), segments, weights
-    )
-    return problem, free0, model, layout
+    return solver_problem(physics, records, horizon, with_library, omega_start=1e-3)
 
 
 @pytest.mark.parametrize("with_library", [False, True])
