@@ -231,9 +231,8 @@ def _solver_programs(model, layout, problem, free0) -> dict:
     iteration (a damped step, the candidate's simulation and, when it is accepted, the
     state there, Jacobian included; the current cost is set to ``inf`` or ``-inf`` so that
     the candidate is accepted or rejected), a whole run on the device (``RUN_PASSES`` - 1
-    trial steps after the start's evaluation, ``tol=0`` so that no rule stops it sooner
-    unless the cost reaches rounding or no descent step is left), and the forward
-    rollout."""
+    trial steps after the start's evaluation, fewer only if the cost stops decreasing:
+    ``tol=0``), and the forward rollout."""
     import jax
     import numpy as np
 
