@@ -859,9 +859,10 @@ class Switched(Effect):
     (and likewise for the state update and the output), so :math:`s = 1` is the effect,
     exactly as :func:`augment` adds it, and :math:`s = 0` the model without it. The switch
     is a parameter value, not structure: models that differ only in which effects are on
-    share one compiled program (``LoopSettings(share_programs=True)`` fits the loop's
-    candidate sets this way). An effect that is off has zero derivatives (even where it
-    would not be finite); a fit leaves its parameters where they start.
+    share one compiled program (the closed loop fits its candidate sets this way in one
+    process, see :mod:`sk_offwhite.loop._switchboard`). An effect that is off is not
+    computed (a ``lax.cond`` on the switch) and has zero derivatives; a fit leaves its
+    parameters where they start.
     """
 
     def __init__(self, effect: Effect):
@@ -882,14 +883,13 @@ class Switched(Effect):
         return theta[self.switch] > 0.5
 
     def apply_input(self, x, u, theta):
-        return jnp.where(self.on(theta), self.effect.apply_input(x, u, theta), u)
+        return _if_on(self.on(theta), lambda: self.effect.apply_input(x, u, theta), u)
 
     def apply_state(self, x, u, x_next, theta):
-        changed = self.effect.apply_state(x, u, x_next, theta)
-        return jnp.where(self.on(theta), changed, x_next)
+        return _if_on(self.on(theta), lambda: self.effect.apply_state(x, u, x_next, theta), x_next)
 
     def apply_output(self, x, u, z, theta):
-        return jnp.where(self.on(theta), self.effect.apply_output(x, u, z, theta), z)
+        return _if_on(self.on(theta), lambda: self.effect.apply_output(x, u, z, theta), z)
 
     @property
     def hidden_states(self) -> tuple[str, ...]:
@@ -919,10 +919,17 @@ class SwitchedTerm(Switched, AdditiveEffect):
         self.state = effect.state
 
     def term(self, x, u, theta):
-        return jnp.where(self.on(theta), self.effect.term(x, u, theta), 0.0)
+        return _if_on(self.on(theta), lambda: self.effect.term(x, u, theta), jnp.zeros_like(x[0]))
 
     def basis(self, x, u):
         return self.effect.basis(x, u)
+
+
+def _if_on(on, changed, unchanged):
+    """``changed()`` where the switch ``on`` is set, else ``unchanged``; a switched-off
+    effect is not computed."""
+    unchanged = jnp.asarray(unchanged)
+    return jax.lax.cond(on, lambda: jnp.asarray(changed(), unchanged.dtype), lambda: unchanged)
 
 
 def switched(effect: Effect) -> Switched:

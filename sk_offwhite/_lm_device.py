@@ -12,6 +12,12 @@ of the host loop up to rounding. Its first pass evaluates the start (no step), s
 iteration is traced once, in the loop, as :mod:`sk_offwhite._initial` does for the initial
 state.
 
+The free vector of a model with switched effects is padded with inert variables to a
+multiple of :data:`PAD_TO` (:func:`_padded`): fits whose free counts differ by a few (the
+closed loop's effect sets on one switchboard) then share one program. The padding adds
+zero rows and columns to the normal equations, so the iterates are the same up to
+rounding.
+
 The host loop stays for ``verbose`` runs (it prints each iteration) and for the coloured
 Jacobian of :mod:`sk_offwhite._structured`, whose normal equations are sparse.
 """
@@ -140,6 +146,39 @@ def _run_on_device(start: _Run, problem, tol, *, model, layout, forward, per_var
     return jax.lax.while_loop(going, partial(_pass, problem=problem, tol=tol, **static), start)
 
 
+PAD_TO = 4
+"""The multiple to which the device run pads the free vector of a model with switched
+effects (``Model.free_multiple``, :func:`padded_size`), so that fits whose free counts
+differ by a few share one program."""
+
+
+def padded_size(n_free: int, multiple: int) -> int:
+    """``n_free`` rounded up to a multiple of ``multiple``."""
+    return -(-n_free // multiple) * multiple
+
+
+def _padded(free0, problem: Problem, n_entries: int, size: int):
+    """``free0`` and ``problem`` with ``size - len(free0)`` inert variables appended: frozen
+    (``active`` 0), held at 0 by their bounds, and written nowhere (their index is past the
+    ``n_entries`` entries of the parameter vector, where the scatter drops them), so their
+    Jacobian columns and gradient entries are zero and every step leaves them at 0."""
+    extra = size - np.shape(free0)[0]
+    if extra == 0:
+        return free0, problem
+
+    def grown(values, fill):
+        values = np.asarray(values)
+        return np.concatenate([values, np.full(extra, fill, dtype=values.dtype)])
+
+    padded = problem._replace(
+        free_index=grown(problem.free_index, n_entries),
+        lower=grown(problem.lower, 0.0),
+        upper=grown(problem.upper, 0.0),
+        active=grown(problem.active, 0.0),
+    )
+    return grown(free0, 0.0), padded
+
+
 def levenberg_marquardt_on_device(
     free0,
     problem: Problem,
@@ -160,6 +199,9 @@ def levenberg_marquardt_on_device(
         return levenberg_marquardt(free0, problem, model, layout, **options)
     forward = forward_mode(free0, problem, model, layout)
     omega_shape = dict(layout.blocks).get("omega", (0,))
+    n_free = np.shape(free0)[0]
+    size = padded_size(n_free, model.free_multiple)
+    free0, problem = _padded(free0, problem, layout.size, size)
     start = _start(free0, omega_shape, int(max_iter))
     per_variable = checked_scaling(scaling) == "per-variable"
     static = dict(model=model, layout=layout, forward=forward, per_variable=per_variable)
@@ -168,6 +210,6 @@ def levenberg_marquardt_on_device(
     history = np.asarray(run.history[: int(run.n_accepted) + 1])
     outcome = int(run.outcome)
     message = OUTCOMES[outcome] + ("" if outcome else _creep(history))
-    n_iter, free = int(run.passes) - 1, np.asarray(run.state.free)
+    n_iter, free = int(run.passes) - 1, np.asarray(run.state.free)[:n_free]
     cost = float(history[-1])
     return SolverResult(free, cost, history, n_iter, outcome > 0, message, float(run.fit))

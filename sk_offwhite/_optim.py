@@ -88,7 +88,7 @@ def free_residuals(free, problem: Problem, model: Model, layout: Layout):
     them where they are. Freezing is data, not structure: it does not re-trace.
     """
     free = jnp.where(problem.active > 0, free, jax.lax.stop_gradient(free))
-    params = layout.unflatten(problem.base.at[problem.free_index].set(free))
+    params = layout.unflatten(problem.base.at[problem.free_index].set(free, mode="drop"))
     return residuals(model, params, problem.segments, problem.omega_free, problem.weights)
 
 
@@ -154,7 +154,7 @@ def checked_scaling(scaling: str) -> str:
 
 def _omega(free, problem: Problem, layout: Layout):
     r""":math:`\Omega` at the free vector ``free`` (an empty array without a dictionary)."""
-    params = layout.unflatten(problem.base.at[problem.free_index].set(free))
+    params = layout.unflatten(problem.base.at[problem.free_index].set(free, mode="drop"))
     return params.get("omega", jnp.zeros(0))
 
 

@@ -14,8 +14,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._backend import to_device
+from ._effects import Switched
 from ._layout import Layout
-from ._lm_device import levenberg_marquardt_on_device
+from ._lm_device import PAD_TO, levenberg_marquardt_on_device
 from ._objective import CostWeights
 from ._optim import Problem, SolverResult, run_optax
 from ._physics import PhysicsModel
@@ -55,7 +56,13 @@ def build_model(physics: PhysicsModel, basis, delta_states: tuple[int, ...]) -> 
         inner_names=() if basis is None else tuple(basis.init_params),
         inequality=physics.inequality,
         equality=physics.equality,
+        free_multiple=PAD_TO if _switched(physics) else 1,
     )
+
+
+def _switched(physics: PhysicsModel) -> bool:
+    """Whether ``physics`` has effects behind switches (a switchboard's model)."""
+    return any(isinstance(effect, Switched) for effect in getattr(physics, "effects", ()))
 
 
 def _window_initial_states(model, blocks, records, segments, horizon):

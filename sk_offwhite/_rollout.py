@@ -54,6 +54,9 @@ class Model:
         Names of the basis' own trainable blocks (``W``, ``B`` of a ridge basis).
     inequality, equality : callable or None
         Physics constraints ``p(x, u, theta) <= 0`` and ``q(x, u, theta) = 0``.
+    free_multiple : int
+        The solver pads the free vector to a multiple of this many variables (1: none; a
+        model with switched effects, so that its switch settings share one program).
     """
 
     step: Callable
@@ -64,6 +67,7 @@ class Model:
     inner_names: tuple[str, ...] = ()
     inequality: Callable | None = None
     equality: Callable | None = None
+    free_multiple: int = 1
 
 
 def theta_dict(model: Model, theta) -> dict:

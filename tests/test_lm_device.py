@@ -1,5 +1,7 @@
 """Levenberg-Marquardt with the whole run on the device takes the host loop's steps."""
 
+import dataclasses
+
 import jax
 import numpy as np
 import pysindy as ps
@@ -8,8 +10,8 @@ from conftest import solver_problem, tanks_physics
 
 from sk_offwhite import GreyBoxSparseRegressor
 from sk_offwhite import _optim as optim
-from sk_offwhite._lm_device import levenberg_marquardt_on_device
-from sk_offwhite._optim import levenberg_marquardt
+from sk_offwhite._lm_device import _padded, levenberg_marquardt_on_device, padded_size
+from sk_offwhite._optim import free_residuals, levenberg_marquardt, linearised
 
 
 @pytest.fixture(autouse=True)
@@ -53,6 +55,29 @@ def test_the_device_run_takes_the_host_loops_steps(
     np.testing.assert_allclose(device.free, host.free, rtol=1e-8, atol=1e-12)
     assert device.cost == device.history[-1]
     np.testing.assert_allclose(device.fit, host.fit, rtol=1e-10)
+
+
+def test_padding_adds_variables_without_influence(tanks_data):
+    problem, free0, model, layout = _problem(tanks_data, with_library=True)
+    n_free = free0.shape[0]
+    assert [padded_size(n, 4) for n in (8, 9, 12)] == [8, 12, 12]
+    padded_free, padded = _padded(free0, problem, layout.size, n_free + 3)
+    assert padded_free.shape == (n_free + 3,)
+    residual = free_residuals(free0, problem, model, layout)
+    np.testing.assert_array_equal(free_residuals(padded_free, padded, model, layout), residual)
+    _, jac = linearised(lambda free: free_residuals(free, padded, model, layout), padded_free)
+    assert np.any(jac[:, :n_free]) and not np.any(jac[:, n_free:])
+    options = dict(max_iter=20, tol=1e-10)
+    run = levenberg_marquardt(padded_free, padded, model, layout, **options)
+    plain = levenberg_marquardt(free0, problem, model, layout, **options)
+    assert np.all(run.free[n_free:] == 0.0) and run.n_iter == plain.n_iter
+    np.testing.assert_allclose(run.history, plain.history, rtol=1e-8)
+    np.testing.assert_allclose(run.free[:n_free], plain.free, rtol=1e-6, atol=1e-10)
+    # a model with switched effects is padded by the device run itself
+    switchboard = dataclasses.replace(model, free_multiple=n_free + 3)
+    device = levenberg_marquardt_on_device(free0, problem, switchboard, layout, **options)
+    assert device.free.shape == (n_free,) and device.n_iter == run.n_iter
+    np.testing.assert_allclose(device.history, run.history, rtol=1e-10)
 
 
 def test_a_run_from_its_own_solution_stops_as_the_host_loop_does(tanks_data):

@@ -81,17 +81,23 @@ def test_the_path_with_worker_folds_is_the_path_in_one_process(tank):
 
 
 def test_the_loop_with_workers_chooses_and_scores_as_in_one_process(tank):
-    def loop(n_jobs):
+    def loop(n_jobs, share_programs):
         settings = LoopSettings(
             n_folds=2, max_iter=40, max_effects=2, max_candidates=4, fit_delta=False,
-            n_jobs=n_jobs,
+            n_jobs=n_jobs, share_programs=share_programs,
         )  # fmt: skip
         return close_the_loop(tank.physics, None, tank.u, tank.z, settings=settings)
 
-    one, two = loop(None), loop(2)
+    one, two = loop(None, False), loop(2, False)
     assert [e.name for e in one.effects] == [e.name for e in two.effects]
     assert one.selection == two.selection and one.single_fits == two.single_fits
     assert one.cv_errors == two.cv_errors and one.failures == two.failures
+    # by default one process fits the effect sets on a switchboard: the same up to rounding
+    board = loop(None, None)
+    assert [e.name for e in board.effects] == [e.name for e in one.effects]
+    assert [label for label, _ in board.selection] == [label for label, _ in one.selection]
+    scores = [[score for _, score in result.selection] for result in (board, one)]
+    np.testing.assert_allclose(*scores, rtol=1e-6)  # fits stopped at max_iter=40
 
 
 class _Broken:

@@ -4,24 +4,26 @@
 ``jit`` structure per set, compiled again for every record layout it is fitted on (the
 candidate fits, the CV folds, the initial-state estimation). :class:`Switchboard` puts every
 candidate behind a switch (:class:`~sk_offwhite.Switched`) in one model, so the sets differ
-only in parameter values and share one compiled program per layout; the switched-off
-effects' parameters stay in the fit as variables without influence (zero Jacobian
-columns). Both compose a set's effects in the order the candidates are given.
+only in parameter values: a switched-off effect is not computed, and its parameters are held
+where they are (fixed), so a set's fit has the free variables it has on its own model. The
+solver pads its free vector to a multiple of
+:data:`~sk_offwhite._lm_device.PAD_TO`, so sets whose free counts differ by a few share one
+compiled program per layout. Both compose a set's effects in the order the candidates are
+given.
 
-Measured on the Cascaded Tanks main job (jax 0.10.2, 2 CPU cores): the switchboard cuts XLA
-compilation from 95 s to 64 s (349 to 251 compilations) and the run from 232 s to 220 s,
-but the fits of the effect sets, which stop at ``max_iter`` there, end elsewhere (their
-linear algebra has more columns, so other rounding): the cross-validated error of the
-3-effect set moved from 0.523 to 0.605 and the loop kept 2 effects instead of 3. Measured
-again with the per-variable damping floor (warm compilation cache, 2 quiet cores, two
-runs each): the same effects, CV and validation errors to every printed digit, and no
-faster: 53-58 s against 50-60 s with separate models, since every fit carries the
-switched-off parameters' columns. The loop therefore uses separate models unless
-``LoopSettings(share_programs=True)``.
+Measured on the Cascaded Tanks main job in one process (jax 0.10.2, 2 CPU cores, no
+compilation cache): the same report to every printed digit; 113 compilations (28 solver
+runs) against 243 (61), 52 s of XLA compilation against 98 s, the whole job 77 s against
+133 s; with the cache filled 26-34 s against 27-41 s (the two alternated). With two worker
+processes the board was slower (cold 116 s against 91 s, warm 35-41 s against 31-32 s):
+each worker compiles or loads the board's programs for itself, where separate models are
+each compiled by the one worker that fits them. The loop therefore uses the board when it
+runs in one process (``LoopSettings(share_programs=None)``, the default).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from typing import NamedTuple
 
 from .._effects import Switched, augment, switched, switches
@@ -81,12 +83,25 @@ class Switchboard(NamedTuple):
         laws = [effect for effect in on if effect.target == "law"]
         switched_on = [effect for effect in on if effect.target != "law"]
         physics = augment(self.physics, *laws) if laws else self.physics
-        return physics.with_parameters(**switches(self.board, switched_on), **(warm or {}))
+        physics = physics.with_parameters(**switches(self.board, switched_on), **(warm or {}))
+        return physics.with_parameters(**_held(physics, self.board, switched_on))
 
 
 def effect_sets(physics: PhysicsModel, effects, shared: bool) -> Switchboard | SeparateModels:
     """A :class:`Switchboard` when ``shared``, else :class:`SeparateModels`."""
     return (Switchboard if shared else SeparateModels).of(physics, effects)
+
+
+def _held(physics: PhysicsModel, board, on) -> dict[str, Parameter]:
+    """The parameters of the effects of ``board`` that are not ``on``, fixed where they are:
+    without influence on the fit, they would only add zero columns to its Jacobian."""
+    names = {effect.name for effect in on}
+    return {
+        name: dataclasses.replace(physics.parameters[name], fixed=True)
+        for switch in board
+        if switch.name not in names
+        for name in switch.effect.parameters()
+    }
 
 
 def _check_known(on, effects) -> None:
