@@ -12,10 +12,11 @@ compiled program per layout. Both compose a set's effects in the order the candi
 given.
 
 Measured on the Cascaded Tanks main job in one process (jax 0.10.2, 2 CPU cores, no
-compilation cache): the same report to every printed digit; 113 compilations (28 solver
-runs) against 243 (61), 52 s of XLA compilation against 98 s, the whole job 77 s against
-133 s; with the cache filled 26-34 s against 27-41 s (the two alternated). With two worker
-processes the board was slower (cold 116 s against 91 s, warm 35-41 s against 31-32 s):
+compilation cache, alternated with the previous commit): the same report to every printed
+digit, 99.5 and 86.6 s against 117.0 and 106.4 s, of which XLA compilation 68.1 and 59.2 s
+against 86.6 and 77.8 s; with the programs kept between stages, 113 compilations (28 solver
+runs) against 243 (61). With two worker processes the board was slower (a first run 115.8 s
+against 91.0 s, with the cache filled 32.9-40.8 s against 30.2-34.7 s):
 each worker compiles or loads the board's programs for itself, where separate models are
 each compiled by the one worker that fits them. The loop therefore uses the board when it
 runs in one process (``LoopSettings(share_programs=None)``, the default).
