@@ -859,8 +859,8 @@ class Switched(Effect):
     (and likewise for the state update and the output), so :math:`s = 1` is the effect,
     exactly as :func:`augment` adds it, and :math:`s = 0` the model without it. The switch
     is a parameter value, not structure: models that differ only in which effects are on
-    share one compiled program (the closed loop fits its candidate sets this way in one
-    process, see :mod:`sk_offwhite.loop._switchboard`). An effect that is off is not
+    share one compiled program (``LoopSettings(share_programs=True)`` fits the loop's
+    candidate sets this way, see :mod:`sk_offwhite.loop._switchboard`). An effect that is off is not
     computed (a ``lax.cond`` on the switch) and has zero derivatives; a fit leaves its
     parameters where they start.
     """

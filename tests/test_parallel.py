@@ -92,8 +92,8 @@ def test_the_loop_with_workers_chooses_and_scores_as_in_one_process(tank):
     assert [e.name for e in one.effects] == [e.name for e in two.effects]
     assert one.selection == two.selection and one.single_fits == two.single_fits
     assert one.cv_errors == two.cv_errors and one.failures == two.failures
-    # by default one process fits the effect sets on a switchboard: the same up to rounding
-    board = loop(None, None)
+    # the effect sets on one switchboard: the same up to rounding
+    board = loop(None, True)
     assert [e.name for e in board.effects] == [e.name for e in one.effects]
     assert [label for label, _ in board.selection] == [label for label, _ in one.selection]
     scores = [[score for _, score in result.selection] for result in (board, one)]

@@ -44,7 +44,6 @@ from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from joblib import effective_n_jobs
 from sklearn.base import clone
 from sklearn.model_selection import KFold
 
@@ -96,16 +95,15 @@ class LoopSettings:
     with a sparse :math:`\delta` are fitted (they show what is left, and cost a path each);
     ``share_programs`` whether every effect set is fitted on one compiled program (a
     :class:`~sk_offwhite.loop._switchboard.Switchboard`: less compilation, see that
-    module); ``None`` shares them when the loop runs in one process (``n_jobs`` one) and
-    gives each set its own model with workers, where sharing was measured slower.
+    module; off by default: measured faster in one process, slower with workers, and on
+    the backlash servo its cross-validation chose other effects).
     ``selection`` is how every choice is scored: ``"cv"``, the mean held-out RMSE over
     ``n_folds`` contiguous blocks; ``"tail"``, the held-out RMSE of the last
     ``tail_fraction`` of the record (after its ``init_window``) when the rest is
     fitted, which is how the model will be used: fitted on the past, run into the future.
     ``n_jobs`` processes (joblib's convention: ``None`` one, ``-1`` all cores) fit the
     held-out folds, the candidate effects and the effect sets, with the same numbers as
-    one with the same ``share_programs`` (the default shares in one process only, so
-    there the numbers agree up to rounding); switch the persistent compilation cache on
+    one; switch the persistent compilation cache on
     (:func:`~sk_offwhite.enable_compilation_cache`) so that they share compiled programs.
     ``lm_scaling`` is every fit's Levenberg-Marquardt scaling (``'per-variable'``, iterates
     that do not depend on the units, or ``'global'``; see
@@ -136,7 +134,7 @@ class LoopSettings:
     min_share: float = 0.1
     n_promoted: int = 3
     fit_delta: bool = True
-    share_programs: bool | None = None
+    share_programs: bool = False
     selection: str = "cv"
     tail_fraction: float = 0.25
     n_jobs: int | None = None
@@ -678,14 +676,6 @@ def _smallest_within(scores: list[float], tolerance: float) -> int:
     return next(k for k, s in enumerate(scores) if s <= best * (1.0 + tolerance))
 
 
-def shares_programs(settings: LoopSettings) -> bool:
-    """Whether the effect sets are fitted on one switchboard (``share_programs``; when
-    ``None``, exactly when the loop runs in one process)."""
-    if settings.share_programs is not None:
-        return bool(settings.share_programs)
-    return effective_n_jobs(settings.n_jobs) == 1
-
-
 def _select_effects(
     physics, candidates, u, z, settings, base_rmse, failures=None, declared_cv=None
 ):
@@ -702,7 +692,7 @@ def _select_effects(
     if declared_cv is None:
         declared_cv = cross_validated_rmse(physics, u, z, settings)
     candidates = _capped(candidates, settings.max_candidates)
-    shared = shares_programs(settings)
+    shared = settings.share_programs
     alone = effect_sets(physics, [c.effect for c in candidates], shared)
     ranked = _released(settings, _rank_alone(alone, candidates, u, z, settings, failures))
     # sets compose their effects in the order of the single fits (best first)
