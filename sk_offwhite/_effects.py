@@ -902,9 +902,7 @@ class Switched(Effect):
         return self.effect.hidden_kinds(input_kinds)
 
     def advance(self, hidden, u, theta):
-        u_seen, changed = self.effect.advance(hidden, u, theta)
-        on = self.on(theta)
-        return jnp.where(on, u_seen, u), jnp.where(on, changed, hidden)
+        return _if_on(self.on(theta), lambda: self.effect.advance(hidden, u, theta), (u, hidden))
 
     def describe(self, state_names, output_names, values=None) -> str:
         return self.effect.describe(state_names, output_names, values)
@@ -926,10 +924,14 @@ class SwitchedTerm(Switched, AdditiveEffect):
 
 
 def _if_on(on, changed, unchanged):
-    """``changed()`` where the switch ``on`` is set, else ``unchanged``; a switched-off
-    effect is not computed."""
-    unchanged = jnp.asarray(unchanged)
-    return jax.lax.cond(on, lambda: jnp.asarray(changed(), unchanged.dtype), lambda: unchanged)
+    """``changed()`` where the switch ``on`` is set, else ``unchanged`` (arrays or a tuple
+    of them, ``changed()`` cast to their types); a switched-off effect is not computed."""
+    unchanged = jax.tree.map(jnp.asarray, unchanged)
+
+    def computed():
+        return jax.tree.map(lambda new, old: jnp.asarray(new, old.dtype), changed(), unchanged)
+
+    return jax.lax.cond(on, computed, lambda: unchanged)
 
 
 def switched(effect: Effect) -> Switched:

@@ -95,8 +95,8 @@ class LoopSettings:
     with a sparse :math:`\delta` are fitted (they show what is left, and cost a path each);
     ``share_programs`` whether every effect set is fitted on one compiled program (a
     :class:`~sk_offwhite.loop._switchboard.Switchboard`: less compilation, see that
-    module; off by default: measured faster in one process, slower with workers, and on
-    the backlash servo its cross-validation chose other effects).
+    module; off by default: measured faster in one process, slower with workers, and its
+    rounding flipped a near-tie of the backlash servo's cross-validation).
     ``selection`` is how every choice is scored: ``"cv"``, the mean held-out RMSE over
     ``n_folds`` contiguous blocks; ``"tail"``, the held-out RMSE of the last
     ``tail_fraction`` of the record (after its ``init_window``) when the rest is

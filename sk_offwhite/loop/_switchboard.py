@@ -18,13 +18,16 @@ against 86.6 and 77.8 s; with the programs kept between stages, 113 compilations
 runs) against 243 (61). With two worker processes the board was slower (a first run 115.8 s
 against 91.0 s, with the cache filled 32.9-40.8 s against 30.2-34.7 s):
 each worker compiles or loads the board's programs for itself, where separate models are
-each compiled by the one worker that fits them. And on the backlash servo
-(:func:`~sk_offwhite.datasets.make_backlash_servo`, 1000 samples, 2 folds, ``max_iter=100``)
-the board's cross-validation chose the backlash with friction and stiffness (CV RMSE
-0.00105) where separate models chose the backlash alone (0.00106; the backlash alone
-scored 0.00113 on the board), although the backlash's fit on the whole record agrees to
-1.4e-7 relative: the folds' fits, stopped at ``max_iter``, amplify the rounding. The loop
-therefore uses separate models unless ``LoopSettings(share_programs=True)``.
+each compiled by the one worker that fits them. And the board's rounding can flip a
+near-tie: on the backlash servo (:func:`~sk_offwhite.datasets.make_backlash_servo`, 1000
+samples, 2 folds, ``max_iter=100``) separate models choose the backlash alone (CV RMSE
+0.00106, with friction 0.00112). The board chose the backlash with friction and stiffness
+(0.00105, the backlash alone 0.00113) while its backlash's hidden state was masked with
+``jnp.where``, and the backlash alone (0.00104, with friction 0.00114) once it went
+through the same ``lax.cond`` as the other effects. The backlash's fit on the whole record
+agrees with its own model's to 1.4e-7 relative: the folds' fits, stopped at
+``max_iter``, amplify the rounding. The loop therefore uses separate models unless
+``LoopSettings(share_programs=True)``.
 """
 
 from __future__ import annotations
