@@ -117,7 +117,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     .. math::
 
         \hat x_{k+1} = f(\hat x_k, u_k; \theta) + S\,\delta(\hat x_k, u_k; \omega), \qquad
-        \hat z_k = h(\hat x_k, u_k; \theta), \qquad
+        \hat z_k = h(\hat x_k, u_k; \theta) + R\,\delta(\hat x_k, u_k; \omega), \qquad
         \delta_i = \sum_j \Omega_{ij}\, \varphi_j(\hat x_k, u_k),
 
     and ``fit`` minimises over :math:`\theta`, :math:`\hat x_0` and :math:`\omega` the cost
@@ -137,6 +137,9 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     stages (see :mod:`sk_offwhite._sparsity`): the physics alone, which gives
     :math:`s_{ij}` and ``gamma_max_``; the penalised fit; pruning of the terms that do not
     matter and a refit of the support without the penalty, so ``coef_`` has exact zeros.
+    :math:`S` and :math:`R` pick the corrected state equations (``delta_states``) and
+    outputs (``delta_outputs``, empty by default: a correction of the output map is a
+    static nonlinearity of the sensor, such as an uncalibrated gauge's curve).
 
     Parameters
     ----------
@@ -161,7 +164,11 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         records into windows of ``horizon`` steps with their own initial states, linked by a
         continuity penalty of weight ``shooting_weight`` (multiple shooting).
     delta_states : sequence of int, default=None
-        State equations that receive the correction; ``None`` means all.
+        State equations that receive the correction; ``None`` means all of them, or none
+        when ``delta_outputs`` is given.
+    delta_outputs : sequence of int, default=None
+        Outputs that receive the correction (a static correction of the output map,
+        evaluated on the same dictionary of :math:`[x; u]`); ``None`` means none.
     prune_tol : float, default=0.01
         Relative tolerance of the pruning stage: a term is removed when its contribution
         :math:`s_{ij}|\Omega_{ij}|` is below ``prune_tol`` times the largest, or when zeroing
@@ -218,8 +225,9 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         The same values, in ``physics.parameter_names`` order.
     x0_ : ndarray of shape (n_states,)
         Fitted initial state of the first record; ``initial_states_`` holds all records'.
-    coef_ : ndarray of shape (n_delta_states, n_features)
-        :math:`\Omega` with exact zeros off the support (empty without a library).
+    coef_ : ndarray of shape (n_delta_states + n_delta_outputs, n_features)
+        :math:`\Omega` with exact zeros off the support (empty without a library): the
+        rows of ``delta_states_``, then those of ``delta_outputs_``.
     support_ : ndarray of bool, same shape as ``coef_``
         Where ``coef_`` is non-zero; ``n_nonzero_`` counts them.
     penalty_scale_ : ndarray, same shape as ``coef_``
@@ -238,7 +246,8 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         :math:`\sigma_o` of the training data.
     feature_names_ : list of str
         Names of the dictionary terms (from the pysindy library).
-    delta_states_ : tuple of int
+    delta_states_, delta_outputs_ : tuple of int
+        The corrected state equations and outputs, one row of ``coef_`` each.
     inner_params_ : dict
         Fitted inner weights of a ridge basis (``W``, ``B``), empty otherwise.
     loss_history_ : ndarray
@@ -276,6 +285,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         "nu": [Interval(Real, 0, None, closed="left")],
         "horizon": [Interval(Integral, 1, None, closed="left"), None],
         "delta_states": ["array-like", None],
+        "delta_outputs": ["array-like", None],
         "prune_tol": [Interval(Real, 0, 1, closed="left")],
         "refit": ["boolean"],
         "l1_smoothing": [Interval(Real, 0, None, closed="neither")],
@@ -301,6 +311,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         horizon: int | None = None,
         *,
         delta_states=None,
+        delta_outputs=None,
         prune_tol: float = 0.01,
         refit: bool = True,
         l1_smoothing: float = 100.0,
@@ -322,6 +333,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         self.nu = nu
         self.horizon = horizon
         self.delta_states = delta_states
+        self.delta_outputs = delta_outputs
         self.prune_tol = prune_tol
         self.refit = refit
         self.l1_smoothing = l1_smoothing
@@ -404,20 +416,14 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
 
     def _delta_states(self, physics: PhysicsModel) -> tuple[int, ...]:
         if self.delta_states is None:
-            return tuple(range(physics.n_states))
-        given = np.atleast_1d(np.asarray(self.delta_states))
-        usable = given.ndim == 1 and given.dtype.kind in "iu"
-        states = tuple(int(i) for i in given) if usable else ()
-        if (
-            not states
-            or not all(0 <= i < physics.n_states for i in states)
-            or len(set(states)) != len(states)
-        ):
-            raise ValueError(
-                f"delta_states must be distinct integer indices in [0, {physics.n_states}), "
-                f"got {self.delta_states!r}."
-            )
-        return states
+            return () if self.delta_outputs is not None else tuple(range(physics.n_states))
+        allow_empty = self.delta_outputs is not None
+        return _indices(self.delta_states, physics.n_states, "delta_states", allow_empty)
+
+    def _delta_outputs(self, n_outputs: int) -> tuple[int, ...]:
+        if self.delta_outputs is None:
+            return ()
+        return _indices(self.delta_outputs, n_outputs, "delta_outputs", allow_empty=False)
 
     # ------------------------------------------------------------------ fit
     @_fit_context(prefer_skip_nested_validation=True)
@@ -450,7 +456,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         physics = self._resolved_physics(n_inputs, n_outputs)
         with jax.enable_x64(True):
             check_physics(physics, n_inputs, n_outputs, records[0][0][0])
-            basis, model = self._compile(physics)
+            basis, model = self._compile(physics, n_outputs)
             outcome = self._solve(physics, basis, model, records, reference_only)
         self._store(physics, basis, model, outcome, n_outputs)
         self._fitted_data = records_digest(records)
@@ -466,13 +472,14 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
                 "use a shorter horizon or horizon=None."
             )
 
-    def _compile(self, physics):
-        delta_states = self._delta_states(physics)
+    def _compile(self, physics, n_outputs: int):
+        delta_states, delta_outputs = self._delta_states(physics), self._delta_outputs(n_outputs)
         basis = None
         if self.library is not None:
             features = list(physics.state_names) + list(physics.input_names)
-            basis = compile_basis(self.library, features, len(delta_states), self.random_state)
-        return basis, build_model(physics, basis, delta_states)
+            n_rows = len(delta_states) + len(delta_outputs)
+            basis = compile_basis(self.library, features, n_rows, self.random_state)
+        return basis, build_model(physics, basis, delta_states, delta_outputs)
 
     def _solve(self, physics, basis, model, records, reference_only=False):
         weights = (self.gamma, self.lam, self.nu, self.shooting_weight, self.l1_smoothing)
@@ -502,8 +509,8 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         settings = (
             id(physics), id(self.library), physics.parameter_values().tobytes(),
             np.asarray(physics.x0, float).tobytes(), self.horizon, self._delta_states(physics),
-            self.lam, self.nu, self.shooting_weight, self.solver, self.lm_scaling, self.max_iter,
-            self.tol, self.random_state,
+            self.delta_outputs, self.lam, self.nu, self.shooting_weight, self.solver,
+            self.lm_scaling, self.max_iter, self.tol, self.random_state,
         )  # fmt: skip
         digest.update(repr(settings).encode())
         return digest.hexdigest()
@@ -567,7 +574,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         self.output_scale_ = np.asarray(outcome.weights.output_scale, float)
         self._state_scale = np.asarray(outcome.weights.state_scale, float)
         self.feature_names_ = [] if basis is None else list(basis.names)
-        self.delta_states_ = model.delta_states
+        self.delta_states_, self.delta_outputs_ = model.delta_states, model.delta_outputs
         self.inner_params_ = {k: np.asarray(blocks[k], float) for k in model.inner_names}
         self.loss_history_ = np.asarray(result.history, float)
         self.cost_, self.n_iter_ = float(result.cost), int(result.n_iter)
@@ -585,7 +592,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     def _fitted_model(self):
         compiled = getattr(self, "_compiled", None)
         if compiled is None:
-            compiled = self._compile(self.physics_)
+            compiled = self._compile(self.physics_, self.n_outputs_)
         return compiled[1]
 
     def _fitted_cost_weights(self) -> CostWeights:
@@ -726,11 +733,11 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
 
     # ------------------------------------------------------------------ read-out
     def equations(self, precision: int = 4) -> list[str]:
-        """Identified state equations, one string per state (corrections written out)."""
+        """Identified state equations, one string per state (corrections written out), then
+        one per corrected output."""
         check_is_fitted(self)
-        return format_equations(
-            self.physics_, self.coef_, self.feature_names_, self.delta_states_, precision
-        )
+        rows = (self.delta_states_, getattr(self, "delta_outputs_", ()))
+        return format_equations(self.physics_, self.coef_, self.feature_names_, rows, precision)
 
     def print(self, precision: int = 4) -> None:
         """Print the fitted parameters, initial state and equations (pysindy-style)."""
@@ -743,6 +750,22 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
             for n, v in zip(self.physics_.state_names, self.x0_, strict=True)
         )
         print(f"  x0: {x0}")
+
+
+def _indices(given, size: int, name: str, allow_empty: bool) -> tuple[int, ...]:
+    """``given`` as a tuple of distinct integer indices in ``[0, size)``, else a
+    ``ValueError`` naming ``name``."""
+    values = np.atleast_1d(np.asarray(given))
+    usable = values.ndim == 1 and (values.dtype.kind in "iu" or values.size == 0)
+    indices = tuple(int(i) for i in values) if usable else None
+    if (
+        indices is None
+        or (not indices and not allow_empty)
+        or not all(0 <= i < size for i in indices)
+        or len(set(indices)) != len(indices)
+    ):
+        raise ValueError(f"{name} must be distinct integer indices in [0, {size}), got {given!r}.")
+    return indices
 
 
 def _check_counts(est: GreyBoxSparseRegressor) -> None:

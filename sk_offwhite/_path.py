@@ -20,6 +20,7 @@ from joblib import effective_n_jobs
 from sklearn.base import clone
 from sklearn.model_selection import KFold, check_cv
 
+from ._equations import correction_rows
 from ._estimator import GreyBoxSparseRegressor
 from ._parallel import gather, launch
 
@@ -131,10 +132,9 @@ class GammaPath:
         """``"equation: term"`` names of the support at ``index`` (default: the chosen one)."""
         if index is None:
             index = len(self.gammas) - 1 if self.best_index is None else self.best_index
-        rows = self.estimator.delta_states_
-        names = self.estimator.physics_.state_names
+        names = correction_rows(self.estimator)
         return [
-            f"{names[rows[i]]}: {self.feature_names[j]}"
+            f"{names[i]}: {self.feature_names[j]}"
             for i, j in zip(*np.nonzero(self.coefs[index]), strict=True)
         ]
 

@@ -6,10 +6,13 @@ The model adds a black-box correction to selected state equations,
 
     x_{k+1} = f(x_k, u_k; \theta) + S\, \delta(x_k, u_k; \omega), \qquad
     \delta_i = \sum_j \Omega_{ij}\, \Phi_{ij}([x_k; u_k]), \qquad
-    z_k = h(x_k, u_k; \theta),
+    z_k = h(x_k, u_k; \theta) + R\, \delta(x_k, u_k; \omega),
 
-where :math:`S` scatters the corrected equations (``delta_states``) into the state and
-:math:`\Phi` is the dictionary (a pysindy library or a ridge basis, see ``_basis``).
+where :math:`S` scatters the corrected state equations (``delta_states``, the first rows
+of :math:`\Omega`) into the state, :math:`R` the corrected outputs (``delta_outputs``, the
+rows after them; a static correction of the output map, such as a sensor's nonlinearity)
+into the output, and :math:`\Phi` is the dictionary (a pysindy library or a ridge basis,
+see ``_basis``).
 Simulation runs the recursion with ``jax.lax.scan`` (a *multi-step* prediction: the model
 feeds back its own states, never the measurements).
 """
@@ -28,6 +31,7 @@ __all__ = [
     "Model",
     "correction",
     "free_run",
+    "model_output",
     "model_step",
     "multiply_add",
     "simulate",
@@ -47,13 +51,17 @@ class Model:
     parameter_names : tuple of str
         Names of all physical parameters, the order of the ``theta`` vector.
     delta_states : tuple of int
-        State equations that receive the correction (empty: physics only).
+        State equations that receive the correction (the first rows of ``omega``).
     basis : callable or None
-        ``basis(inner_params, v) -> (len(delta_states), m)`` dictionary evaluation.
+        ``basis(inner_params, v) -> (n_rows, m)`` dictionary evaluation, ``n_rows =
+        len(delta_states) + len(delta_outputs)``.
     inner_names : tuple of str
         Names of the basis' own trainable blocks (``W``, ``B`` of a ridge basis).
     inequality, equality : callable or None
         Physics constraints ``p(x, u, theta) <= 0`` and ``q(x, u, theta) = 0``.
+    delta_outputs : tuple of int
+        Outputs that receive the correction (the rows of ``omega`` after those of
+        ``delta_states``; empty: the declared output map).
     free_multiple : int
         The solver pads the free vector to a multiple of this many variables (1: none; a
         model with switched effects, so that its switch settings share one program).
@@ -68,6 +76,7 @@ class Model:
     inequality: Callable | None = None
     equality: Callable | None = None
     free_multiple: int = 1
+    delta_outputs: tuple[int, ...] = ()
 
 
 def theta_dict(model: Model, theta) -> dict:
@@ -79,11 +88,30 @@ def correction(model: Model, params: dict, x, u):
     r"""Black-box term :math:`S\delta(x, u; \omega)` added to the state update."""
     if model.basis is None or not model.delta_states:
         return jnp.zeros_like(x)
+    delta = _delta_rows(model, params, x, u)[: len(model.delta_states)]
+    return _scattered(delta, model.delta_states, x.shape[0], x.dtype)
+
+
+def output_correction(model: Model, params: dict, x, u, n_outputs: int):
+    r"""Black-box term :math:`R\delta(x, u; \omega)` added to the output map."""
+    if model.basis is None or not model.delta_outputs:
+        return jnp.zeros((n_outputs,), x.dtype)
+    delta = _delta_rows(model, params, x, u)[len(model.delta_states) :]
+    return _scattered(delta, model.delta_outputs, n_outputs, x.dtype)
+
+
+def _delta_rows(model: Model, params: dict, x, u):
+    r"""Every row of the correction, :math:`\sum_j \Omega_{ij} \Phi_{ij}([x; u])`."""
     inner = {name: params[name] for name in model.inner_names}
     features = model.basis(inner, jnp.concatenate([x, u]))
-    delta = multiply_add(params["omega"], features)
-    zero = jnp.zeros((), x.dtype)  # built entry by entry: a scatter would not fuse
-    rows = [[k for k, s in enumerate(model.delta_states) if s == i] for i in range(x.shape[0])]
+    return multiply_add(params["omega"], features)
+
+
+def _scattered(delta, targets: tuple[int, ...], size: int, dtype):
+    """A vector of ``size`` with ``delta[k]`` added at ``targets[k]``, built entry by entry
+    (a scatter would not fuse with the rest of a simulation step)."""
+    zero = jnp.zeros((), dtype)
+    rows = [[k for k, t in enumerate(targets) if t == i] for i in range(size)]
     return jnp.stack([sum((delta[k] for k in ks), zero) for ks in rows])
 
 
@@ -119,6 +147,15 @@ def model_step(model: Model, params: dict, x, u):
     return jnp.asarray(physics, dtype=x.dtype).reshape(x.shape) + correction(model, params, x, u)
 
 
+def model_output(model: Model, params: dict, x, u, theta: dict):
+    r"""The output of the augmented model: :math:`h(x, u; \theta) + R\delta(x, u; \omega)`
+    (``theta`` the physical parameters by name, :func:`theta_dict`)."""
+    declared = jnp.atleast_1d(model.output(x, u, theta))
+    if not model.delta_outputs:
+        return declared
+    return declared + output_correction(model, params, x, u, declared.shape[0])
+
+
 def simulate(model: Model, params: dict, x0, u):
     r"""Free-run simulation from ``x0`` over the input sequence ``u`` of shape ``(L, n_u)``.
 
@@ -127,14 +164,14 @@ def simulate(model: Model, params: dict, x0, u):
     states : array of shape (L, n_x)
         :math:`\hat x_0, \dots, \hat x_{L-1}`.
     outputs : array of shape (L, n_z)
-        :math:`\hat z_k = h(\hat x_k, u_k; \theta)`.
+        :math:`\hat z_k = h(\hat x_k, u_k; \theta) + R\delta(\hat x_k, u_k; \omega)`.
     final_state : array of shape (n_x,)
         :math:`\hat x_L`, used to link consecutive shooting windows.
     """
     theta = theta_dict(model, params["theta"])
 
     def advance(x, u_k):
-        z_k = jnp.atleast_1d(model.output(x, u_k, theta))
+        z_k = model_output(model, params, x, u_k, theta)
         return model_step(model, params, x, u_k), (x, z_k)
 
     final_state, (states, outputs) = jax.lax.scan(advance, x0, u)

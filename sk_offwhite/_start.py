@@ -48,7 +48,9 @@ def continuation_start(fit: Callable, settings) -> dict | None:
     :mod:`~sk_offwhite._structured`). Returns ``None`` when the requested horizon is no
     longer than :data:`FIRST_HORIZON`.
     """
-    model = dataclasses.replace(settings.model, basis=None, delta_states=(), inner_names=())
+    model = dataclasses.replace(
+        settings.model, basis=None, delta_states=(), delta_outputs=(), inner_names=()
+    )
     plain = settings._replace(basis=None, model=model)
     plain = plain._replace(options=settings.options._replace(solver="lm"))
     target = settings.horizon or max(u.shape[0] for u, _ in settings.records)

@@ -22,6 +22,7 @@ from typing import NamedTuple
 import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
+from .._equations import correction_rows
 from .._estimator import GreyBoxSparseRegressor, records_digest
 from .._layout import Layout
 from .._objective import CostWeights
@@ -123,7 +124,7 @@ def _block_names(estimator, blocks: dict) -> dict[str, np.ndarray]:
     ]
     names = {"theta": np.array(physics.parameter_names, object), "x0": np.array(x0, object)}
     if "omega" in blocks:
-        rows = [physics.state_names[i] for i in estimator.delta_states_]
+        rows = correction_rows(estimator)
         omega = [[f"omega[{row}: {term}]" for term in estimator.feature_names_] for row in rows]
         names["omega"] = np.array(omega, object)
     return names

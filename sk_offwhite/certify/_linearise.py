@@ -34,6 +34,7 @@ import jax.numpy as jnp
 import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
+from .._equations import correction_rows
 from .._rollout import simulate
 from .._validation import check_pair
 from ._certificates import SparsityCertificate, certify_problem
@@ -103,10 +104,10 @@ def _omega_mask(estimator) -> np.ndarray:
 
 def _omega_names(estimator, mask: np.ndarray) -> tuple[str, ...]:
     """``feature`` (one corrected equation) or ``state: feature`` per trainable entry."""
-    states = [estimator.physics_.state_names[i] for i in estimator.delta_states_]
+    rows = correction_rows(estimator)
     names = [
-        name if len(states) == 1 else f"{state}: {name}"
-        for state in states
+        name if len(rows) == 1 else f"{row}: {name}"
+        for row in rows
         for name in estimator.feature_names_
     ]
     return tuple(n for n, keep in zip(names, mask.reshape(-1), strict=True) if keep)
