@@ -420,9 +420,10 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         allow_empty = self.delta_outputs is not None
         return _indices(self.delta_states, physics.n_states, "delta_states", allow_empty)
 
-    def _delta_outputs(self, n_outputs: int) -> tuple[int, ...]:
+    def _delta_outputs(self, n_outputs: int | None) -> tuple[int, ...]:
         if self.delta_outputs is None:
             return ()
+        n_outputs = self.n_outputs_ if n_outputs is None else n_outputs
         return _indices(self.delta_outputs, n_outputs, "delta_outputs", allow_empty=False)
 
     # ------------------------------------------------------------------ fit
@@ -472,7 +473,9 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
                 "use a shorter horizon or horizon=None."
             )
 
-    def _compile(self, physics, n_outputs: int):
+    def _compile(self, physics, n_outputs: int | None = None):
+        """The compiled dictionary and model structure (``n_outputs`` defaults to the fitted
+        one; only a correction of the outputs needs it)."""
         delta_states, delta_outputs = self._delta_states(physics), self._delta_outputs(n_outputs)
         basis = None
         if self.library is not None:
@@ -592,7 +595,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     def _fitted_model(self):
         compiled = getattr(self, "_compiled", None)
         if compiled is None:
-            compiled = self._compile(self.physics_, self.n_outputs_)
+            compiled = self._compile(self.physics_)
         return compiled[1]
 
     def _fitted_cost_weights(self) -> CostWeights:

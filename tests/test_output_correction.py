@@ -1,0 +1,144 @@
+"""The sparse correction of the output map (``delta_outputs``): a static sensor nonlinearity."""
+
+import pickle
+import warnings
+
+import numpy as np
+import pysindy as ps
+import pytest
+from sklearn.base import clone
+
+from sk_offwhite import GreyBoxSparseRegressor, PhysicsModel, fit_gamma_path
+from sk_offwhite.certify import identifiability
+from sk_offwhite.datasets import make_nonlinear_sensor_tank
+from sk_offwhite.datasets._synthetic import tank_rhs
+
+
+@pytest.fixture(scope="module")
+def sensor_data():
+    return make_nonlinear_sensor_tank(n_samples=600, random_state=0)
+
+
+def _library():
+    return ps.PolynomialLibrary(degree=2, include_bias=True)
+
+
+def _fit(physics, u, z, **kwargs):
+    est = GreyBoxSparseRegressor(physics, _library(), gamma=1e-3, max_iter=300, **kwargs)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return est.fit(u, z)
+
+
+def _validation_rmse(est, data) -> float:
+    return float(np.sqrt(np.mean((est.predict(data.u_val).ravel() - data.z_val.ravel()) ** 2)))
+
+
+def _read_as(physics: PhysicsModel, gain: float) -> PhysicsModel:
+    """The sensor tank's declared physics with its output map multiplied by ``gain``."""
+    return PhysicsModel.from_ode(
+        tank_rhs,
+        1.0,
+        output=lambda x, u, theta: gain * x[:1],
+        parameters=dict(physics.parameters),
+        n_states=1,
+        n_inputs=1,
+        method="euler",
+        x0=tuple(physics.x0),
+        state_names=("x",),
+        input_names=("u",),
+    )
+
+
+def test_the_output_correction_finds_the_sensor_curve_and_the_true_outflow(sensor_data):
+    est = _fit(sensor_data.physics, sensor_data.u, sensor_data.z, delta_outputs=[0])
+    names = list(est.feature_names_)
+    assert est.coef_.shape == (1, len(names))
+    assert est.delta_states_ == () and est.delta_outputs_ == (0,)
+    assert est.n_nonzero_ == 1
+    np.testing.assert_allclose(est.coef_[0, names.index("x^2")], 0.04, rtol=0.05)
+    np.testing.assert_allclose(est.parameters_["k"], 0.5, rtol=0.01)
+    curve = est.coef_[0, names.index("x^2")]
+    assert est.equations() == [
+        "x[k+1] = f_1(x[k], u[k]; θ)",
+        f"output x = h_1(x[k], u[k]; θ) + {curve:.4g} x^2",
+    ]
+
+
+def test_on_a_sensor_fault_it_validates_better_than_a_state_correction(sensor_data):
+    on_state = _fit(sensor_data.physics, sensor_data.u, sensor_data.z)
+    on_output = _fit(sensor_data.physics, sensor_data.u, sensor_data.z, delta_outputs=[0])
+    assert _validation_rmse(on_output, sensor_data) < 0.6 * _validation_rmse(on_state, sensor_data)
+    assert _validation_rmse(on_output, sensor_data) < 1.2 * 0.02  # the noise level
+
+
+def test_the_output_correction_does_not_depend_on_the_output_units(sensor_data):
+    gain = 1000.0
+    base = _fit(sensor_data.physics, sensor_data.u, sensor_data.z, delta_outputs=[0])
+    scaled = _fit(
+        _read_as(sensor_data.physics, gain), sensor_data.u, gain * sensor_data.z, delta_outputs=[0]
+    )
+    np.testing.assert_array_equal(scaled.support_, base.support_)
+    np.testing.assert_allclose(scaled.coef_, gain * base.coef_, rtol=1e-4, atol=1e-12)
+    np.testing.assert_allclose(scaled.parameters_["k"], base.parameters_["k"], rtol=1e-5)
+
+
+def test_state_and_output_rows_together(sensor_data):
+    est = _fit(
+        sensor_data.physics, sensor_data.u, sensor_data.z, delta_states=[0], delta_outputs=[0]
+    )
+    assert est.coef_.shape == (2, len(est.feature_names_))
+    assert est.delta_states_ == (0,) and est.delta_outputs_ == (0,)
+    lines = est.equations()
+    assert lines[0].startswith("x[k+1] = f_1") and lines[1].startswith("output x = h_1")
+    # the fault is in the sensor: the output row carries the curve
+    names = list(est.feature_names_)
+    np.testing.assert_allclose(est.coef_[1, names.index("x^2")], 0.04, rtol=0.15)
+
+
+def test_the_gamma_path_names_output_rows(sensor_data):
+    est = GreyBoxSparseRegressor(sensor_data.physics, _library(), delta_outputs=[0], max_iter=100)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        path = fit_gamma_path(est, sensor_data.u[:300], sensor_data.z[:300], n_gammas=3, cv=None)
+    assert all(name.startswith("output x: ") for name in path.selected(len(path.gammas) - 1))
+
+
+def test_identifiability_of_an_output_correction(sensor_data):
+    est = _fit(sensor_data.physics, sensor_data.u, sensor_data.z, delta_outputs=[0])
+    report = identifiability(est, sensor_data.u, sensor_data.z)
+    assert report.identifiable
+    assert "omega[output x: x^2]" in report.names
+
+
+def test_an_output_correction_survives_clone_and_pickle(sensor_data):
+    est = _fit(sensor_data.physics, sensor_data.u, sensor_data.z, delta_outputs=[0])
+    assert clone(est).get_params()["delta_outputs"] == [0]
+    restored = pickle.loads(pickle.dumps(est))
+    np.testing.assert_array_equal(
+        restored.predict(sensor_data.u_val), est.predict(sensor_data.u_val)
+    )
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"delta_outputs": [1]}, r"delta_outputs must be distinct integer indices in \[0, 1\)"),
+        ({"delta_outputs": [0, 0]}, "delta_outputs must be distinct"),
+        ({"delta_outputs": []}, "delta_outputs must be distinct"),
+        ({"delta_outputs": [0.5]}, "delta_outputs must be distinct"),
+        ({"delta_states": []}, "delta_states must be distinct"),
+    ],
+)
+def test_bad_correction_targets_are_named(sensor_data, kwargs, match):
+    est = GreyBoxSparseRegressor(sensor_data.physics, _library(), max_iter=5, **kwargs)
+    with pytest.raises(ValueError, match=match):
+        est.fit(sensor_data.u[:50], sensor_data.z[:50])
+
+
+def test_no_state_rows_when_only_outputs_are_corrected(sensor_data):
+    est = _fit(
+        sensor_data.physics, sensor_data.u[:200], sensor_data.z[:200], delta_outputs=[0],
+        delta_states=[],
+    )  # fmt: skip
+    assert est.delta_states_ == () and est.coef_.shape[0] == 1
