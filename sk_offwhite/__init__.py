@@ -28,6 +28,7 @@ from ._effects import (
 from ._estimator import DivergenceWarning, GreyBoxSparseRegressor, expected_failed_checks
 from ._path import GammaPath, fit_gamma_path, gamma_grid
 from ._physics import Parameter, PhysicsModel
+from ._radial import RadialBasis
 from ._splitters import SequenceSplit, SequenceWarning
 
 __all__ = [
@@ -50,6 +51,7 @@ __all__ = [
     "Parameter",
     "PhysicsModel",
     "QuadraticDrag",
+    "RadialBasis",
     "RelaxedLaw",
     "RidgeBasis",
     "SensorCalibration",

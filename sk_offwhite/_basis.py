@@ -39,6 +39,7 @@ import jax.numpy as jnp
 import numpy as np
 from sklearn.utils import check_random_state
 
+from ._radial import RadialBasis
 from ._rollout import take
 
 if TYPE_CHECKING:
@@ -137,7 +138,7 @@ def compile_basis(
 
     Parameters
     ----------
-    library : RidgeBasis or pysindy feature library
+    library : RidgeBasis, RadialBasis or pysindy feature library
         The dictionary. Supported pysindy 2.1 libraries: ``PolynomialLibrary``
         (and ``IdentityLibrary()``, which returns one), ``FourierLibrary``,
         ``CustomLibrary`` (functions written with ``jax.numpy`` or plain
@@ -170,13 +171,21 @@ def compile_basis(
     n_delta = _check_n_delta(n_delta)
     if isinstance(library, RidgeBasis):
         return _compile_ridge(library, features, n_delta, random_state)
+    if isinstance(library, RadialBasis):
+        key = (library.key(), features, n_delta)
+        return _cached(key, _compile_radial, library, features, n_delta)
     key = _library_key(library, features, n_delta)
     if key is None:
         return _compile_pysindy(library, features, n_delta)
+    return _cached(key, _compile_pysindy, library, features, n_delta)
+
+
+def _cached(key, compile_, *args) -> CompiledBasis:
+    """``compile_(*args)``, kept under ``key`` (a bounded cache, oldest dropped first)."""
     if key not in _COMPILED_LIBRARIES:
         if len(_COMPILED_LIBRARIES) >= _CACHE_SIZE:
             _COMPILED_LIBRARIES.pop(next(iter(_COMPILED_LIBRARIES)))
-        _COMPILED_LIBRARIES[key] = _compile_pysindy(library, features, n_delta)
+        _COMPILED_LIBRARIES[key] = compile_(*args)
     return _COMPILED_LIBRARIES[key]
 
 
@@ -290,6 +299,37 @@ def _as_vector(v: jnp.ndarray, n_features: int) -> jnp.ndarray:
     if not jnp.issubdtype(v.dtype, jnp.floating):
         v = v.astype(jnp.result_type(float))
     return v
+
+
+# ---------------------------------------------------------------------------
+# Gaussian bumps
+# ---------------------------------------------------------------------------
+
+
+def _compile_radial(library: RadialBasis, features: tuple[str, ...], n_delta: int):
+    """Compile a :class:`~sk_offwhite._radial.RadialBasis` (the row shared by all rows)."""
+    missing = [name for name in library.centers if name not in features]
+    if missing:
+        raise ValueError(f"RadialBasis names {missing}, which are not among {list(features)}.")
+    names = tuple(library.feature_names())
+    n_features, m = len(features), len(names)
+    groups = [
+        (features.index(name), centers, library.widths[name], library.limits.get(name))
+        for name, centers in library.centers.items()
+    ]
+
+    def evaluate(inner_params: dict[str, Any], v: jnp.ndarray) -> jnp.ndarray:
+        """Return ``Φ(v)`` of shape ``(n_delta, m)``; ``inner_params`` is unused."""
+        v = _as_vector(v, n_features)
+        columns = [jnp.ones((), v.dtype)] if library.linear else []
+        for j, centers, width, limits in groups:
+            value = v[j] if limits is None else jnp.clip(v[j], *limits)
+            columns += [value] if library.linear else []
+            columns += [jnp.exp(-0.5 * ((value - c) / width) ** 2) for c in centers]
+        return jnp.broadcast_to(jnp.stack(columns), (n_delta, m))
+
+    omega = np.ones((n_delta, m), dtype=bool)
+    return CompiledBasis(names, {}, {}, omega, jax.jit(evaluate), features)
 
 
 # ---------------------------------------------------------------------------

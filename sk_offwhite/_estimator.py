@@ -385,6 +385,13 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         state.pop("_reference", None)
         return state
 
+    def __setstate__(self, state):
+        state = dict(state)
+        state.setdefault("delta_outputs", None)  # pickled before outputs could be corrected
+        if "delta_states_" in state:
+            state.setdefault("delta_outputs_", ())
+        super().__setstate__(state)
+
     # ------------------------------------------------------------------ data
     def _records(self, u, z, sample_index, reset: bool):
         """Validated list of contiguous ``(u, z)`` records."""

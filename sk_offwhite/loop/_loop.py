@@ -23,7 +23,11 @@ r"""The closed loop: residual -> evidence -> named effect -> refit -> before/aft
    ``min_gain``, then refined stepwise (each other named candidate added or exchanged for
    one of its effects, each of its effects dropped; see :func:`_swap`).
 5. Refit the augmented physics and, with ``fit_delta``, the augmented physics with a
-   sparse :math:`\delta` (:math:`\gamma` chosen by CV on the support path).
+   sparse :math:`\delta` (:math:`\gamma` chosen by CV on the support path); with
+   ``fit_output_delta`` too, where outputs measure states, the augmented physics with a sparse
+   correction of its output map instead (a static nonlinearity of the sensors: Gaussian
+   bumps of the measured states, :meth:`~sk_offwhite.RadialBasis.from_data`, spread over
+   the augmented physics' simulated range).
 6. **Never worse.** Every final model is cross-validated the same way; ``result.chosen``
    names the CV-best, and a model is never preferred to one with a lower CV error.
 
@@ -55,6 +59,7 @@ from .._optim import LM_SCALINGS
 from .._parallel import gather, launch, start_workers
 from .._path import GammaPath, fit_gamma_path
 from .._physics import Parameter
+from .._radial import RadialBasis
 from .._validation import check_record
 from ..diagnose import analyse_residuals, range_violations
 from ._candidates import Candidate, promoted_terms, propose_effects, unique_by_name
@@ -115,6 +120,10 @@ class LoopSettings:
     each stage and each phase of the effect selection, and worker processes after each of
     their tasks: the structures fitted there are seldom fitted again, and the programs of
     those that are are traced again (and loaded from the disk cache when it is on).
+    ``fit_output_delta`` whether, with ``fit_delta``, the augmented physics is also fitted
+    with a sparse correction of its output map, where the outputs read states (a sensor's
+    static nonlinearity; a path more), on ``output_bumps`` Gaussian bumps of each measured
+    state.
     """
 
     gammas: tuple[float, ...] | None = None
@@ -141,6 +150,8 @@ class LoopSettings:
     lm_scaling: str = "per-variable"
     one_standard_error: bool = False
     release_programs: bool = True
+    fit_output_delta: bool = True
+    output_bumps: int = 7
 
     def __post_init__(self):
         if self.selection not in ("cv", "tail"):
@@ -158,6 +169,9 @@ class LoopSettings:
             raise ValueError(f"gammas must be None or finite values >= 0, got {self.gammas}.")
         if isinstance(self.n_folds, bool) or not int(self.n_folds) == self.n_folds >= 2:
             raise ValueError(f"n_folds must be an integer >= 2, got {self.n_folds!r}.")
+        bumps = self.output_bumps
+        if isinstance(bumps, bool) or not int(bumps) == bumps >= 2:
+            raise ValueError(f"output_bumps must be an integer >= 2, got {bumps!r}.")
 
 
 @dataclass
@@ -170,8 +184,12 @@ class LoopResult:
     (:class:`~sk_offwhite.GammaPath`, ``None`` for a single γ) of the two fits with δ
     (``with_delta`` and ``final_with_delta`` are ``None`` without ``fit_delta`` or when
     they failed). ``evidence`` is the physics-only fit with the dictionary the hypotheses
-    come from; ``cv_errors`` maps each fitted model's key (``"baseline"``, ``"with_delta"``,
-    ``"final"``, ``"final_with_delta"``) to its cross-validated RMSE, ``chosen`` is the
+    come from; ``final_with_output_delta`` the augmented physics with a sparse correction
+    of its output map and ``output_gamma_path`` its path (``None`` without
+    ``fit_output_delta``, when the outputs do not read states, or when it failed);
+    ``cv_errors`` maps each fitted model's key (``"baseline"``, ``"with_delta"``,
+    ``"final"``, ``"final_with_delta"``, ``"final_with_output_delta"``) to its
+    cross-validated RMSE, ``chosen`` is the
     key of the lowest; ``failures`` one line per fit that failed; ``notes`` what the loop
     decided not to use and why; ``timings`` the wall time of each stage in seconds (the
     stages are logged as they run, see :mod:`~sk_offwhite.loop._progress`); ``set_fits``
@@ -201,6 +219,8 @@ class LoopResult:
     notes: list = field(default_factory=list)
     timings: dict = field(default_factory=dict)
     set_fits: dict = field(default_factory=dict)
+    final_with_output_delta: GreyBoxSparseRegressor | None = None
+    output_gamma_path: GammaPath | None = None
 
     @property
     def best(self) -> GreyBoxSparseRegressor:
@@ -394,14 +414,15 @@ def _attempt_all(failures: list, calls, settings: LoopSettings | None = None) ->
     return [value for value, _ in outcomes]
 
 
-def _fit_delta(physics, library, u, z, settings, evidence=None):
+def _fit_delta(physics, library, u, z, settings, evidence=None, targets=None):
     """Physics + δ on the support path, γ chosen by CV RMSE; the fitted estimator and the
     path (``None`` for a single γ, fitted directly). ``evidence``, an estimator with the
     same settings fitted to its physics-only stage, is refitted along the path, which then
-    reuses that stage (the estimator's cache) instead of computing it again."""
-    est = evidence or _estimator(
-        physics, settings, cv=True, library=library, delta_states=settings.delta_states
-    )
+    reuses that stage (the estimator's cache) instead of computing it again. ``targets``:
+    the estimator's ``delta_states`` and ``delta_outputs`` (default: the settings'
+    ``delta_states``)."""
+    targets = targets or {"delta_states": settings.delta_states}
+    est = evidence or _estimator(physics, settings, cv=True, library=library, **targets)
     if settings.gammas is not None and len(settings.gammas) == 1:
         est.set_params(gamma=settings.gammas[0], horizon=settings.horizon)
         return fit_continued(est, u, z, settings.horizon), None
@@ -847,16 +868,43 @@ def _read_evidence(physics, library, u, z, settings, failures):
     return evidence, evidence_hypotheses(evidence, run, u, min_share=settings.min_share)
 
 
-def _scored_delta(key, physics, library, u, z, settings, failures, evidence=None):
-    """``(estimator, path, CV RMSE)`` of ``physics`` + δ (``None, None, inf`` on failure)."""
+def _scored_delta(key, physics, library, u, z, settings, failures, evidence=None, targets=None):
+    """``(estimator, path, CV RMSE)`` of ``physics`` + δ (``None, None, inf`` on failure);
+    ``targets`` as for :func:`_fit_delta`."""
     fitted = _attempt(
-        failures, MODEL_LABELS[key], _fit_delta, physics, library, u, z, settings, evidence
-    )
+        failures, MODEL_LABELS[key], _fit_delta, physics, library, u, z, settings, evidence,
+        targets,
+    )  # fmt: skip
     if fitted is None:
         return None, None, np.inf
     label = f"CV of {MODEL_LABELS[key]}"
     cv = _attempt(failures, label, _delta_cv, fitted[0], fitted[1], u, z, settings)
     return fitted[0], fitted[1], np.inf if cv is None else cv
+
+
+def _scored_output_delta(physics, fitted, measured, u, z, settings, failures, notes):
+    """``(estimator, path, CV RMSE)`` of ``physics`` + a sparse correction of every output,
+    each measuring the state ``measured[i]`` (``None``: the output map is not a reading of
+    states, and a note says the stage was skipped), on the bumps of the measured states
+    over the range ``fitted`` simulates."""
+    key = "final_with_output_delta"
+    if measured is None:
+        notes.append(f"{MODEL_LABELS[key]} not fitted: the outputs do not read states directly.")
+        return None, None, np.inf
+    label = f"dictionary of {MODEL_LABELS[key]}"
+    library = _attempt(failures, label, _output_library, fitted, u, measured, settings)
+    if library is None:
+        return None, None, np.inf
+    targets = {"delta_states": (), "delta_outputs": tuple(range(len(measured)))}
+    return _scored_delta(key, physics, library, u, z, settings, failures, None, targets)
+
+
+def _output_library(fitted, u, measured, settings) -> RadialBasis:
+    """Gaussian bumps of the ``measured`` states over the range of ``fitted``'s free run."""
+    states = np.asarray(fitted.simulate(u).states, float)
+    columns = sorted(set(int(i) for i in measured))
+    names = [fitted.physics_.state_names[i] for i in columns]
+    return RadialBasis.from_data(states[:, columns], names, n_bumps=settings.output_bumps)
 
 
 def _delta_hypotheses(est, u, cv, declared_cv, settings, notes):
@@ -942,6 +990,12 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
                 "final_with_delta", warm_physics(augmented, final), library, u, z, settings,
                 failures,
             )  # fmt: skip
+    if settings.fit_delta and settings.fit_output_delta:
+        with _stage(clock, MODEL_LABELS["final_with_output_delta"], settings):
+            fits["final_with_output_delta"] = _scored_output_delta(
+                warm_physics(augmented, final), final, getattr(physics.output, "indices", None),
+                u, z, settings, failures, notes,
+            )  # fmt: skip
     models = {key: fit[0] for key, fit in fits.items()}
     paths = {key: fit[1] for key, fit in fits.items()}
     cv_errors = {key: fit[2] for key, fit in fits.items() if fit[0] is not None}
@@ -967,6 +1021,8 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
         notes,
         clock.seconds,
         {"declared physics": baseline, **set_fits},
+        models.get("final_with_output_delta"),
+        paths.get("final_with_output_delta"),
     )
 
 

@@ -52,7 +52,7 @@ def _figure_outputs(result, u, z, path: Path, title: str) -> None:
     fig, axes = _figure((9, 5.5), nrows=2, ncols=1, sharex=True)
     z = np.asarray(z, float).reshape(len(u), -1)[:, 0]
     axes[0].plot(z, "k", lw=1.2, label="measured")
-    for key in ("baseline", "final"):
+    for key in dict.fromkeys(("baseline", "final", result.chosen)):
         z_sim = getattr(result, key).simulate(u).outputs[:, 0]
         axes[0].plot(z_sim, lw=1, label=MODEL_LABELS[key])
         axes[1].plot(z - z_sim, lw=1, label=MODEL_LABELS[key])
@@ -206,6 +206,17 @@ def _remaining_lines(result) -> list[str]:
     return lines + [count + ".", ""] + after.equations() + [""]
 
 
+def _output_lines(result) -> list[str]:
+    """The sparse correction of the output map on the augmented physics, if fitted."""
+    est = result.final_with_output_delta
+    if est is None:
+        return ["Not fitted (`fit_output_delta=False`, outputs that do not read states, or a "
+                "failed fit: see the notes and failures).", ""]  # fmt: skip
+    lines = _gamma_lines(result.output_gamma_path, est.gamma)
+    count = f"Non-zero terms: {int(est.support_.sum())} of {est.coef_.size}."
+    return lines + [count, ""] + est.equations()[len(est.physics_.state_names) :] + [""]
+
+
 def _gamma_lines(path, chosen: float) -> list[str]:
     """The support path as a table, or the single γ fitted."""
     if path is None:
@@ -260,6 +271,8 @@ def write_report(result, rows, records: dict, directory, *, title: str, notes=()
         lines += _gamma_lines(result.gamma_path, result.with_delta.gamma)
     lines += ["## Remaining correction on the augmented physics", ""]
     lines += _remaining_lines(result)
+    lines += ["## Correction of the output map on the augmented physics", ""]
+    lines += _output_lines(result)
     lines += ["## Model chosen (lowest cross-validated error)", ""] + _choice_lines(result)
     lines += ["## Fits that failed", ""] + _failure_lines(result)
     lines += ["## Time per stage", ""] + _timing_lines(result)

@@ -22,6 +22,7 @@ MODEL_LABELS = {
     "with_delta": "physics + sparse δ",
     "final": "augmented physics",
     "final_with_delta": "augmented physics + δ",
+    "final_with_output_delta": "augmented physics + output δ",
 }
 
 
