@@ -1,17 +1,27 @@
-"""The sparse correction of the output map (``delta_outputs``): a static sensor nonlinearity."""
+"""The sparse correction of the output map (``delta_outputs``), its dictionary of bumps
+(``RadialBasis``) and the loop's stage that fits it: a static sensor nonlinearity."""
 
 import pickle
 import warnings
 
+import jax
 import numpy as np
 import pysindy as ps
 import pytest
 from sklearn.base import clone
 
-from sk_offwhite import GreyBoxSparseRegressor, PhysicsModel, fit_gamma_path
+from sk_offwhite import (
+    GreyBoxSparseRegressor,
+    PhysicsModel,
+    RadialBasis,
+    compile_basis,
+    fit_gamma_path,
+)
 from sk_offwhite.certify import identifiability
 from sk_offwhite.datasets import make_nonlinear_sensor_tank
 from sk_offwhite.datasets._synthetic import tank_rhs
+from sk_offwhite.loop import LoopSettings, cross_validated_rmse, warm_physics
+from sk_offwhite.loop._loop import _scored_output_delta
 
 
 @pytest.fixture(scope="module")
@@ -142,3 +152,106 @@ def test_no_state_rows_when_only_outputs_are_corrected(sensor_data):
         delta_states=[],
     )  # fmt: skip
     assert est.delta_states_ == () and est.coef_.shape[0] == 1
+
+
+# --------------------------------------------------------------------- the dictionary
+
+
+def test_the_radial_dictionary_is_its_formula_clipped_to_its_limits():
+    library = RadialBasis({"x2": [1.0, 3.0]}, {"x2": 0.5}, limits={"x2": (0.0, 4.0)})
+    compiled = compile_basis(library, ["x1", "x2", "u"], 2)
+    assert compiled.names == (
+        "1",
+        "clip(x2)",
+        "exp(-0.5 ((clip(x2) - 1) / 0.5)^2)",
+        "exp(-0.5 ((clip(x2) - 3) / 0.5)^2)",
+    )
+    for x2, held in [(2.2, 2.2), (9.0, 4.0), (-3.0, 0.0)]:
+        with jax.enable_x64(True):
+            phi = np.asarray(compiled.evaluate({}, np.array([7.0, x2, 5.0])))
+        bumps = np.exp(-0.5 * ((held - np.array([1.0, 3.0])) / 0.5) ** 2)
+        np.testing.assert_allclose(phi, np.tile([1.0, held, *bumps], (2, 1)), rtol=1e-12)
+
+
+def test_the_radial_dictionary_from_data_does_not_depend_on_units():
+    rng = np.random.default_rng(0)
+    values = rng.normal(5.0, 2.0, size=(200, 1))
+    probe = np.array([[0.0, v] for v in np.linspace(-5.0, 15.0, 9)])
+    features = []
+    for gain in (1.0, 250.0):
+        library = RadialBasis.from_data(gain * values, ["x"], n_bumps=5)
+        compiled = compile_basis(library, ["u", "x"], 1)
+        with jax.enable_x64(True):
+            rows = np.array([compiled.evaluate({}, gain * row)[0] for row in probe])
+        features.append(rows[:, 2:])  # the bumps (the constant and x scale with the units)
+        assert library.limits["x"] == (gain * values.min(), gain * values.max())
+    np.testing.assert_allclose(features[1], features[0], rtol=1e-9, atol=1e-12)
+
+
+def test_equal_radial_dictionaries_share_a_compiled_program():
+    make = lambda: RadialBasis({"x": [0.0, 1.0]}, {"x": 1.0})  # noqa: E731
+    assert make() == make() and hash(make()) == hash(make())
+    assert compile_basis(make(), ["x"], 1) is compile_basis(make(), ["x"], 1)
+    assert pickle.loads(pickle.dumps(make())) == make()
+
+
+@pytest.mark.parametrize(
+    "args, kwargs, match",
+    [
+        (({"x": [0.0]}, {"y": 1.0}), {}, "name the same"),
+        (({"x": []}, {"x": 1.0}), {}, "non-empty"),
+        (({"x": [np.nan]}, {"x": 1.0}), {}, "finite"),
+        (({"x": [0.0]}, {"x": 0.0}), {}, r"widths\['x'\]"),
+        (({"x": [0.0]}, {"x": 1.0}), {"limits": {"x": (2.0, 1.0)}}, r"limits\['x'\]"),
+        (({"x": [0.0]}, {"x": 1.0}), {"limits": {"y": (0.0, 1.0)}}, r"limits\['y'\]"),
+    ],
+)
+def test_bad_radial_dictionaries_are_refused(args, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        RadialBasis(*args, **kwargs)
+
+
+def test_a_radial_dictionary_must_name_known_variables():
+    with pytest.raises(ValueError, match=r"names \['h'\]"):
+        compile_basis(RadialBasis({"h": [0.0]}, {"h": 1.0}), ["x", "u"], 1)
+    with pytest.raises(ValueError, match="n_bumps"):
+        RadialBasis.from_data(np.arange(5.0), ["x"], n_bumps=1)
+    with pytest.raises(ValueError, match="vary"):
+        RadialBasis.from_data(np.ones(5), ["x"])
+
+
+# --------------------------------------------------------------------- the loop's stage
+
+
+def test_the_loop_corrects_the_output_map_where_the_sensor_is_wrong(sensor_data):
+    u, z = sensor_data.u[:400], sensor_data.z[:400]
+    settings = LoopSettings(n_folds=2, max_iter=100, gammas=(1e-3,))
+    declared = GreyBoxSparseRegressor(sensor_data.physics, max_iter=100).fit(u, z)
+    start = warm_physics(sensor_data.physics, declared)
+    failures, notes = [], []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        est, path, cv = _scored_output_delta(start, declared, (0,), u, z, settings, failures, notes)
+        declared_cv = cross_validated_rmse(start, u, z, settings)
+    assert failures == [] and notes == [] and path is None
+    assert est.delta_outputs_ == (0,) and est.delta_states_ == ()
+    states = declared.simulate(u).states[:, 0]
+    assert est.library.limits == {"x": (states.min(), states.max())}
+    assert cv < 0.5 * declared_cv
+
+
+def test_no_output_correction_where_the_outputs_do_not_read_states(sensor_data):
+    failures, notes = [], []
+    outcome = _scored_output_delta(
+        sensor_data.physics, None, None, sensor_data.u, sensor_data.z, LoopSettings(), failures,
+        notes,
+    )  # fmt: skip
+    assert outcome == (None, None, np.inf) and failures == []
+    assert notes == ["augmented physics + output δ not fitted: the outputs do not read states "
+                     "directly."]  # fmt: skip
+
+
+def test_output_bumps_must_be_an_integer_of_at_least_two():
+    for bad in (1, 2.5, True):
+        with pytest.raises(ValueError, match="output_bumps"):
+            LoopSettings(output_bumps=bad)

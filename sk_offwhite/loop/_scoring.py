@@ -72,8 +72,8 @@ def score_models(result, records: dict, init_window: int = 50) -> list[dict]:
     """
     rows = []
     for key, label in MODEL_LABELS.items():
-        est = getattr(result, key)
-        if est is None:  # not fitted (fit_delta=False) or failed: listed in the report
+        est = getattr(result, key, None)
+        if est is None:  # not fitted (fit_delta=False), failed (listed in the report) or older
             continue
         for record, (u, z) in records.items():
             for protocol in ("original", "init_window"):
