@@ -3,6 +3,7 @@
 
 import pickle
 import warnings
+from types import SimpleNamespace
 
 import jax
 import numpy as np
@@ -21,7 +22,7 @@ from sk_offwhite.certify import identifiability
 from sk_offwhite.datasets import make_nonlinear_sensor_tank
 from sk_offwhite.datasets._synthetic import tank_rhs
 from sk_offwhite.loop import LoopSettings, cross_validated_rmse, warm_physics
-from sk_offwhite.loop._loop import _scored_output_delta
+from sk_offwhite.loop._loop import _choose, _scored_output_delta
 
 
 @pytest.fixture(scope="module")
@@ -255,3 +256,18 @@ def test_output_bumps_must_be_an_integer_of_at_least_two():
     for bad in (1, 2.5, True):
         with pytest.raises(ValueError, match="output_bumps"):
             LoopSettings(output_bumps=bad)
+
+
+def test_a_correction_that_kept_no_term_is_not_chosen_on_its_own_score():
+    physics = SimpleNamespace(library=None, n_nonzero_=0)
+    empty = SimpleNamespace(library="a dictionary", n_nonzero_=0)
+    kept = SimpleNamespace(library="a dictionary", n_nonzero_=3)
+    models = {"final": physics, "final_with_output_delta": empty, "final_with_delta": kept}
+    cv = {"final": 0.2, "final_with_output_delta": 0.15, "final_with_delta": 0.18}
+    notes = []
+    assert _choose(cv, models, notes) == "final_with_delta"
+    assert notes == [
+        "augmented physics + output δ kept no term (it is the physics it corrects): not "
+        "chosen on its own score (0.15)."
+    ]
+    assert _choose({**cv, "final_with_delta": 0.25}, models, []) == "final"

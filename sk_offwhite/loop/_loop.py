@@ -827,10 +827,24 @@ def _delta_cv(est, path: GammaPath | None, u, z, settings) -> float:
     return _cv_rmse(template, u, z, settings)
 
 
-def _choose(cv_errors: dict) -> str:
-    """Key of the lowest finite CV error (``"baseline"`` when none is finite)."""
-    finite = {k: v for k, v in cv_errors.items() if np.isfinite(v)}
+def _choose(cv_errors: dict, models: dict, notes: list) -> str:
+    """Key of the lowest finite CV error (``"baseline"`` when none is finite) among the
+    ``models`` that are models of their own: a fit with δ that kept no term is the physics
+    it corrects, refitted, and its score (from other fold fits) does not stand for a
+    different model; a note says so."""
+    empty = [k for k, est in models.items() if est is not None and _empty_delta(est)]
+    for key in empty:
+        notes.append(
+            f"{MODEL_LABELS[key]} kept no term (it is the physics it corrects): not chosen "
+            f"on its own score ({cv_errors.get(key, np.inf):.4g})."
+        )
+    finite = {k: v for k, v in cv_errors.items() if np.isfinite(v) and k not in empty}
     return min(finite, key=finite.get) if finite else "baseline"
+
+
+def _empty_delta(est) -> bool:
+    """Whether ``est`` was fitted with a dictionary and kept none of its terms."""
+    return est.library is not None and est.n_nonzero_ == 0
 
 
 def _candidates(physics, library, hypotheses, facts, run, u, settings):
@@ -1016,7 +1030,7 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
         paths.get("final_with_delta"),
         snapshot,
         cv_errors,
-        _choose(cv_errors),
+        _choose(cv_errors, models, notes),
         failures,
         notes,
         clock.seconds,
