@@ -1,6 +1,6 @@
 r"""Pure JAX simulation of the grey-box model.
 
-The model adds a black-box correction to selected state equations,
+The model adds a black-box correction to selected state equations and outputs,
 
 .. math::
 
@@ -34,6 +34,7 @@ __all__ = [
     "model_output",
     "model_step",
     "multiply_add",
+    "output_correction",
     "simulate",
     "take",
     "theta_dict",
