@@ -91,6 +91,7 @@ def test_report_is_written_with_figures(leaky, tmp_path):
     assert (tmp_path / "outputs_validation.png").stat().st_size > 1000
     assert (tmp_path / "correction.png").exists() and (tmp_path / "results.json").exists()
     assert "## Time per stage" in text and "| effect selection |" in text
+    assert "## Correction of the output map on the augmented physics" in text
 
 
 def test_every_effect_set_of_the_trail_is_scored_on_validation(leaky, tmp_path):

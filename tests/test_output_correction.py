@@ -34,6 +34,12 @@ def _library():
     return ps.PolynomialLibrary(degree=2, include_bias=True)
 
 
+@pytest.fixture(scope="module")
+def output_fit(sensor_data):
+    """The sensor tank fitted with a correction of its output map."""
+    return _fit(sensor_data.physics, sensor_data.u, sensor_data.z, delta_outputs=[0])
+
+
 def _fit(physics, u, z, **kwargs):
     est = GreyBoxSparseRegressor(physics, _library(), gamma=1e-3, max_iter=300, **kwargs)
     with warnings.catch_warnings():
@@ -61,8 +67,8 @@ def _read_as(physics: PhysicsModel, gain: float) -> PhysicsModel:
     )
 
 
-def test_the_output_correction_finds_the_sensor_curve_and_the_true_outflow(sensor_data):
-    est = _fit(sensor_data.physics, sensor_data.u, sensor_data.z, delta_outputs=[0])
+def test_the_output_correction_finds_the_sensor_curve_and_the_true_outflow(output_fit):
+    est = output_fit
     names = list(est.feature_names_)
     assert est.coef_.shape == (1, len(names))
     assert est.delta_states_ == () and est.delta_outputs_ == (0,)
@@ -76,16 +82,14 @@ def test_the_output_correction_finds_the_sensor_curve_and_the_true_outflow(senso
     ]
 
 
-def test_on_a_sensor_fault_it_validates_better_than_a_state_correction(sensor_data):
+def test_on_a_sensor_fault_it_validates_better_than_a_state_correction(sensor_data, output_fit):
     on_state = _fit(sensor_data.physics, sensor_data.u, sensor_data.z)
-    on_output = _fit(sensor_data.physics, sensor_data.u, sensor_data.z, delta_outputs=[0])
-    assert _validation_rmse(on_output, sensor_data) < 0.6 * _validation_rmse(on_state, sensor_data)
-    assert _validation_rmse(on_output, sensor_data) < 1.2 * 0.02  # the noise level
+    assert _validation_rmse(output_fit, sensor_data) < 0.6 * _validation_rmse(on_state, sensor_data)
+    assert _validation_rmse(output_fit, sensor_data) < 1.2 * 0.02  # the noise level
 
 
-def test_the_output_correction_does_not_depend_on_the_output_units(sensor_data):
-    gain = 1000.0
-    base = _fit(sensor_data.physics, sensor_data.u, sensor_data.z, delta_outputs=[0])
+def test_the_output_correction_does_not_depend_on_the_output_units(sensor_data, output_fit):
+    gain, base = 1000.0, output_fit
     scaled = _fit(
         _read_as(sensor_data.physics, gain), sensor_data.u, gain * sensor_data.z, delta_outputs=[0]
     )
@@ -108,22 +112,21 @@ def test_state_and_output_rows_together(sensor_data):
 
 
 def test_the_gamma_path_names_output_rows(sensor_data):
-    est = GreyBoxSparseRegressor(sensor_data.physics, _library(), delta_outputs=[0], max_iter=100)
+    est = GreyBoxSparseRegressor(sensor_data.physics, _library(), delta_outputs=[0], max_iter=40)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        path = fit_gamma_path(est, sensor_data.u[:300], sensor_data.z[:300], n_gammas=3, cv=None)
+        path = fit_gamma_path(est, sensor_data.u[:150], sensor_data.z[:150], n_gammas=3, cv=None)
     assert all(name.startswith("output x: ") for name in path.selected(len(path.gammas) - 1))
 
 
-def test_identifiability_of_an_output_correction(sensor_data):
-    est = _fit(sensor_data.physics, sensor_data.u, sensor_data.z, delta_outputs=[0])
-    report = identifiability(est, sensor_data.u, sensor_data.z)
+def test_identifiability_of_an_output_correction(sensor_data, output_fit):
+    report = identifiability(output_fit, sensor_data.u, sensor_data.z)
     assert report.identifiable
     assert "omega[output x: x^2]" in report.names
 
 
-def test_an_output_correction_survives_clone_and_pickle(sensor_data):
-    est = _fit(sensor_data.physics, sensor_data.u, sensor_data.z, delta_outputs=[0])
+def test_an_output_correction_survives_clone_and_pickle(sensor_data, output_fit):
+    est = output_fit
     assert clone(est).get_params()["delta_outputs"] == [0]
     restored = pickle.loads(pickle.dumps(est))
     np.testing.assert_array_equal(
@@ -148,10 +151,12 @@ def test_bad_correction_targets_are_named(sensor_data, kwargs, match):
 
 
 def test_no_state_rows_when_only_outputs_are_corrected(sensor_data):
-    est = _fit(
-        sensor_data.physics, sensor_data.u[:200], sensor_data.z[:200], delta_outputs=[0],
-        delta_states=[],
-    )  # fmt: skip
+    est = GreyBoxSparseRegressor(
+        sensor_data.physics, _library(), max_iter=5, delta_outputs=[0], delta_states=[]
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        est.fit(sensor_data.u[:50], sensor_data.z[:50])
     assert est.delta_states_ == () and est.coef_.shape[0] == 1
 
 
@@ -225,7 +230,7 @@ def test_a_radial_dictionary_must_name_known_variables():
 
 
 def test_the_loop_corrects_the_output_map_where_the_sensor_is_wrong(sensor_data):
-    u, z = sensor_data.u[:400], sensor_data.z[:400]
+    u, z = sensor_data.u[:300], sensor_data.z[:300]
     settings = LoopSettings(n_folds=2, max_iter=100, gammas=(1e-3,))
     declared = GreyBoxSparseRegressor(sensor_data.physics, max_iter=100).fit(u, z)
     start = warm_physics(sensor_data.physics, declared)
