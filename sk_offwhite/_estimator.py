@@ -746,7 +746,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         """Identified state equations, one string per state (corrections written out), then
         one per corrected output."""
         check_is_fitted(self)
-        rows = (self.delta_states_, getattr(self, "delta_outputs_", ()))
+        rows = (self.delta_states_, self.delta_outputs_)
         return format_equations(self.physics_, self.coef_, self.feature_names_, rows, precision)
 
     def print(self, precision: int = 4) -> None:

@@ -189,10 +189,11 @@ class LoopResult:
     ``fit_output_delta``, when the outputs do not read states, or when it failed);
     ``cv_errors`` maps each fitted model's key (``"baseline"``, ``"with_delta"``,
     ``"final"``, ``"final_with_delta"``, ``"final_with_output_delta"``) to its
-    cross-validated RMSE, ``chosen`` is the
-    key of the lowest; ``failures`` one line per fit that failed; ``notes`` what the loop
-    decided not to use and why; ``timings`` the wall time of each stage in seconds (the
-    stages are logged as they run, see :mod:`~sk_offwhite.loop._progress`); ``set_fits``
+    cross-validated RMSE, ``chosen`` is the key of the lowest (a fit with δ that kept no
+    term excepted: it is the physics it corrects); ``failures`` one line per fit that
+    failed; ``notes`` what the loop decided not to use and why; ``timings`` the wall time
+    of each stage in seconds (the stages are logged as they run, see
+    :mod:`~sk_offwhite.loop._progress`); ``set_fits``
     each model of the ``selection`` trail fitted on the whole estimation record, by its
     label (``None`` where that fit failed), so that every structural step can be scored
     on validation data (the report does).
