@@ -311,22 +311,30 @@ def _compile_radial(library: RadialBasis, features: tuple[str, ...], n_delta: in
     missing = [name for name in library.centers if name not in features]
     if missing:
         raise ValueError(f"RadialBasis names {missing}, which are not among {list(features)}.")
-    names = tuple(library.feature_names())
-    n_features, m = len(features), len(names)
     groups = [
         (features.index(name), centers, library.widths[name], library.limits.get(name))
         for name, centers in library.centers.items()
     ]
 
-    def evaluate(inner_params: dict[str, Any], v: jnp.ndarray) -> jnp.ndarray:
-        """Return ``Φ(v)`` of shape ``(n_delta, m)``; ``inner_params`` is unused."""
-        v = _as_vector(v, n_features)
+    def phi(v: jnp.ndarray) -> jnp.ndarray:
         columns = [jnp.ones((), v.dtype)] if library.linear else []
         for j, centers, width, limits in groups:
             value = v[j] if limits is None else jnp.clip(v[j], *limits)
             columns += [value] if library.linear else []
             columns += [jnp.exp(-0.5 * ((value - c) / width) ** 2) for c in centers]
-        return jnp.broadcast_to(jnp.stack(columns), (n_delta, m))
+        return jnp.stack(columns)
+
+    return _shared_row(phi, tuple(library.feature_names()), features, n_delta)
+
+
+def _shared_row(phi: FeatureFn, names: tuple[str, ...], features, n_delta: int) -> CompiledBasis:
+    """A dictionary whose row ``phi(v)`` is shared by all ``n_delta`` corrected rows (no
+    inner parameters)."""
+    n_features, m = len(features), len(names)
+
+    def evaluate(inner_params: dict[str, Any], v: jnp.ndarray) -> jnp.ndarray:
+        """Return ``Φ(v)`` of shape ``(n_delta, m)``; ``inner_params`` is unused."""
+        return jnp.broadcast_to(phi(_as_vector(v, n_features)), (n_delta, m))
 
     omega = np.ones((n_delta, m), dtype=bool)
     return CompiledBasis(names, {}, {}, omega, jax.jit(evaluate), features)
@@ -344,14 +352,7 @@ def _compile_pysindy(library: Any, features: tuple[str, ...], n_delta: int) -> C
     phi = _build_features(fitted)
     names = tuple(str(name) for name in fitted.get_feature_names(list(features)))
     _check_against_transform(fitted, phi, names)
-    n_features, m = len(features), len(names)
-
-    def evaluate(inner_params: dict[str, Any], v: jnp.ndarray) -> jnp.ndarray:
-        """Return ``Φ(v)`` of shape ``(n_delta, m)``; ``inner_params`` is unused."""
-        return jnp.broadcast_to(phi(_as_vector(v, n_features)), (n_delta, m))
-
-    omega = np.ones((n_delta, m), dtype=bool)
-    return CompiledBasis(names, {}, {}, omega, jax.jit(evaluate), features)
+    return _shared_row(phi, names, features, n_delta)
 
 
 def _supported_message() -> str:

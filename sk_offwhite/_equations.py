@@ -47,7 +47,6 @@ def correction_rows(estimator) -> list[str]:
     """The variable each row of a fitted estimator's ``coef_`` corrects: state names, then
     ``output <name>`` for each corrected output."""
     physics = estimator.physics_
-    outputs = getattr(estimator, "delta_outputs_", ())
     return [physics.state_names[i] for i in estimator.delta_states_] + [
-        f"output {output_name(physics, i)}" for i in outputs
+        f"output {output_name(physics, i)}" for i in estimator.delta_outputs_
     ]

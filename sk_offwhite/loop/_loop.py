@@ -53,6 +53,7 @@ from sklearn.model_selection import KFold
 
 from .._cache import release_package_programs
 from .._effects import DictionaryTerm, augment, relaxations, time_step
+from .._equations import output_name
 from .._estimator import GreyBoxSparseRegressor
 from .._kinds import physical_kinds
 from .._optim import LM_SCALINGS
@@ -858,7 +859,7 @@ def _candidates(physics, library, hypotheses, facts, run, u, settings):
         physics.state_names,
         _output_names(physics, run.outputs.shape[1]),
         run.states,
-        getattr(physics.output, "indices", None),
+        _measured(physics),
         u=u,
         input_names=physics.input_names,
         kinds=physical_kinds(physics),
@@ -999,21 +1000,21 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
             settings.horizon,
         ) or baseline  # fmt: skip
     fits["final"] = (final, None, dict(trail).get(_label(effects), declared_cv))
+    fitted_augmented = warm_physics(augmented, final)
     if settings.fit_delta:
         with _stage(clock, MODEL_LABELS["final_with_delta"], settings):
             fits["final_with_delta"] = _scored_delta(
-                "final_with_delta", warm_physics(augmented, final), library, u, z, settings,
-                failures,
-            )  # fmt: skip
+                "final_with_delta", fitted_augmented, library, u, z, settings, failures
+            )
     if settings.fit_delta and settings.fit_output_delta:
         with _stage(clock, MODEL_LABELS["final_with_output_delta"], settings):
             fits["final_with_output_delta"] = _scored_output_delta(
-                warm_physics(augmented, final), final, getattr(physics.output, "indices", None),
-                u, z, settings, failures, notes,
-            )  # fmt: skip
+                fitted_augmented, final, _measured(physics), u, z, settings, failures, notes
+            )
     models = {key: fit[0] for key, fit in fits.items()}
     paths = {key: fit[1] for key, fit in fits.items()}
     cv_errors = {key: fit[2] for key, fit in fits.items() if fit[0] is not None}
+    chosen = _choose(cv_errors, models, notes)
     return LoopResult(
         physics,
         augment(physics, *effects),
@@ -1031,7 +1032,7 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
         paths.get("final_with_delta"),
         snapshot,
         cv_errors,
-        _choose(cv_errors, models, notes),
+        chosen,
         failures,
         notes,
         clock.seconds,
@@ -1066,9 +1067,13 @@ def _label(effects) -> str:
 
 
 def _output_names(physics, n_outputs: int) -> list[str]:
-    if physics.output_names is not None:
-        return list(physics.output_names)
-    return [f"z{i + 1}" for i in range(n_outputs)]
+    return [output_name(physics, i) for i in range(n_outputs)]
+
+
+def _measured(physics) -> tuple[int, ...] | None:
+    """The state each output reads, when the output map is a reading of states
+    (:class:`~sk_offwhite._physics.MeasuredStates`), else ``None``."""
+    return getattr(physics.output, "indices", None)
 
 
 def analyse_model(est, u, z, physics, *, x0=None, z_init_window=0):
