@@ -136,8 +136,8 @@ def step_and_output(model: Model, params: dict, x, u, theta: dict):
     r"""One step and the output of the augmented model,
     :math:`(f(x, u; \theta) + S\delta, \; h(x, u; \theta) + R\delta)`, the dictionary
     evaluated once for both (``theta`` the physical parameters by name, :func:`theta_dict`)."""
+    z = jnp.atleast_1d(model.output(x, u, theta))  # traced first, as before: same rounding
     x_next = jnp.asarray(model.step(x, u, theta), dtype=x.dtype).reshape(x.shape)
-    z = jnp.atleast_1d(model.output(x, u, theta))
     if model.basis is None:
         return x_next, z
     delta = _delta_rows(model, params, x, u)
