@@ -31,9 +31,11 @@ __all__ = [
     "Model",
     "correction",
     "free_run",
+    "model_output",
+    "model_step",
     "multiply_add",
+    "output_correction",
     "simulate",
-    "step_and_output",
     "take",
     "theta_dict",
 ]
@@ -91,6 +93,14 @@ def correction(model: Model, params: dict, x, u):
     return _scattered(delta, model.delta_states, x.shape[0], x.dtype)
 
 
+def output_correction(model: Model, params: dict, x, u, n_outputs: int):
+    r"""Black-box term :math:`R\delta(x, u; \omega)` added to the output map."""
+    if model.basis is None or not model.delta_outputs:
+        return jnp.zeros((n_outputs,), x.dtype)
+    delta = _delta_rows(model, params, x, u)[len(model.delta_states) :]
+    return _scattered(delta, model.delta_outputs, n_outputs, x.dtype)
+
+
 def _delta_rows(model: Model, params: dict, x, u):
     r"""Every row of the correction, :math:`\sum_j \Omega_{ij} \Phi_{ij}([x; u])`."""
     inner = {name: params[name] for name in model.inner_names}
@@ -132,21 +142,19 @@ def take(v, indices):
     return jnp.stack(entries) if entries else jnp.zeros((0,), v.dtype)
 
 
-def step_and_output(model: Model, params: dict, x, u, theta: dict):
-    r"""One step and the output of the augmented model,
-    :math:`(f(x, u; \theta) + S\delta, \; h(x, u; \theta) + R\delta)`, the dictionary
-    evaluated once for both (``theta`` the physical parameters by name, :func:`theta_dict`)."""
-    z = jnp.atleast_1d(model.output(x, u, theta))  # traced first, as before: same rounding
-    x_next = jnp.asarray(model.step(x, u, theta), dtype=x.dtype).reshape(x.shape)
-    if model.basis is None:
-        return x_next, z
-    delta = _delta_rows(model, params, x, u)
-    n_states = len(model.delta_states)
-    if model.delta_states:
-        x_next = x_next + _scattered(delta[:n_states], model.delta_states, x.shape[0], x.dtype)
-    if model.delta_outputs:
-        z = z + _scattered(delta[n_states:], model.delta_outputs, z.shape[0], x.dtype)
-    return x_next, z
+def model_step(model: Model, params: dict, x, u):
+    r"""One step of the augmented model: :math:`f(x, u; \theta) + S\delta(x, u; \omega)`."""
+    physics = model.step(x, u, theta_dict(model, params["theta"]))
+    return jnp.asarray(physics, dtype=x.dtype).reshape(x.shape) + correction(model, params, x, u)
+
+
+def model_output(model: Model, params: dict, x, u, theta: dict):
+    r"""The output of the augmented model: :math:`h(x, u; \theta) + R\delta(x, u; \omega)`
+    (``theta`` the physical parameters by name, :func:`theta_dict`)."""
+    declared = jnp.atleast_1d(model.output(x, u, theta))
+    if not model.delta_outputs:
+        return declared
+    return declared + output_correction(model, params, x, u, declared.shape[0])
 
 
 def simulate(model: Model, params: dict, x0, u):
@@ -164,8 +172,8 @@ def simulate(model: Model, params: dict, x0, u):
     theta = theta_dict(model, params["theta"])
 
     def advance(x, u_k):
-        x_next, z_k = step_and_output(model, params, x, u_k, theta)
-        return x_next, (x, z_k)
+        z_k = model_output(model, params, x, u_k, theta)
+        return model_step(model, params, x, u_k), (x, z_k)
 
     final_state, (states, outputs) = jax.lax.scan(advance, x0, u)
     return states, outputs, final_state

@@ -27,7 +27,7 @@ import jax.numpy as jnp
 from .._layout import Layout
 from .._objective import residuals, rollout_segments
 from .._optim import Problem, linearised
-from .._rollout import Model, step_and_output, theta_dict
+from .._rollout import Model, model_output, model_step, theta_dict
 
 __all__ = ["Perturbation", "cost_hessian", "mixed_derivatives", "output_jacobian"]
 
@@ -79,8 +79,8 @@ def disturbed_outputs(model: Model, params: dict, segments, disturbance):
     def one(x0, u, d):
         def advance(x, step):
             u_k, d_k = step
-            x_next, z_k = step_and_output(model, params, x, u_k, theta)
-            return x_next + d_k, z_k
+            z_k = model_output(model, params, x, u_k, theta)
+            return model_step(model, params, x, u_k) + d_k, z_k
 
         return jax.lax.scan(advance, x0, (u, d))[1]
 
