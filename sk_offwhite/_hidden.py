@@ -21,6 +21,8 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
+from ._physics import measured_states
+
 __all__ = ["DeclaredStates", "HiddenStateStep", "with_hidden_states"]
 
 
@@ -101,7 +103,7 @@ def with_hidden_states(model, physics, hidden: tuple, new: tuple) -> None:
     model.n_declared_states = n_declared
     model.n_states = physics.n_states + len(added)
     model.step = HiddenStateStep(model.step, hidden, n_declared)
-    if callable(model.output) and not hasattr(model.output, "indices"):
+    if callable(model.output) and measured_states(model.output) is None:
         model.output = _declared_only(model.output, n_declared)
     model.inequality = _declared_only(physics.inequality, n_declared)
     model.equality = _declared_only(physics.equality, n_declared)

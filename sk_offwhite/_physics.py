@@ -24,7 +24,7 @@ import numpy as np
 from ._kinds import check_kinds
 from ._rollout import take
 
-__all__ = ["DiscretizedStep", "MeasuredStates", "Parameter", "PhysicsModel"]
+__all__ = ["DiscretizedStep", "MeasuredStates", "Parameter", "PhysicsModel", "measured_states"]
 
 StepFn = Callable[[Any, Any, Mapping[str, Any]], Any]
 
@@ -148,6 +148,12 @@ class MeasuredStates:
 
     def __hash__(self) -> int:
         return hash((MeasuredStates, self.indices))
+
+
+def measured_states(output) -> tuple[int, ...] | None:
+    """The state each output reads when the output map is a reading of states (it has the
+    ``indices`` of :class:`MeasuredStates`), else ``None``."""
+    return getattr(output, "indices", None)
 
 
 class PhysicsModel:

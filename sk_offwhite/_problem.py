@@ -19,7 +19,7 @@ from ._layout import Layout
 from ._lm_device import PAD_TO, levenberg_marquardt_on_device
 from ._objective import CostWeights
 from ._optim import Problem, SolverResult, run_optax
-from ._physics import PhysicsModel
+from ._physics import PhysicsModel, measured_states
 from ._rollout import Model, free_run
 from ._segments import Segments, make_segments
 from ._sparsity import SparseOptions, fit_sparse, output_scale, state_scale
@@ -96,7 +96,7 @@ def initial_state_guess(base, output, z_first, fixed=None) -> np.ndarray:
     Applies when the output map is :class:`~sk_offwhite._physics.MeasuredStates`.
     """
     guess = np.array(base, dtype=float)
-    indices = getattr(output, "indices", None)
+    indices = measured_states(output)
     if indices is not None:
         measured = np.asarray(indices)
         free = np.ones(measured.shape, bool) if fixed is None else ~fixed[measured]

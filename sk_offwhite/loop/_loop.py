@@ -59,7 +59,7 @@ from .._kinds import physical_kinds
 from .._optim import LM_SCALINGS
 from .._parallel import gather, launch, start_workers
 from .._path import GammaPath, fit_gamma_path
-from .._physics import Parameter
+from .._physics import Parameter, measured_states
 from .._radial import RadialBasis
 from .._validation import check_record
 from ..diagnose import analyse_residuals, range_violations
@@ -859,7 +859,7 @@ def _candidates(physics, library, hypotheses, facts, run, u, settings):
         physics.state_names,
         _output_names(physics, run.outputs.shape[1]),
         run.states,
-        _measured(physics),
+        measured_states(physics.output),
         u=u,
         input_names=physics.input_names,
         kinds=physical_kinds(physics),
@@ -1009,8 +1009,9 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
     if settings.fit_delta and settings.fit_output_delta:
         with _stage(clock, MODEL_LABELS["final_with_output_delta"], settings):
             fits["final_with_output_delta"] = _scored_output_delta(
-                fitted_augmented, final, _measured(physics), u, z, settings, failures, notes
-            )
+                fitted_augmented, final, measured_states(physics.output), u, z, settings,
+                failures, notes,
+            )  # fmt: skip
     models = {key: fit[0] for key, fit in fits.items()}
     paths = {key: fit[1] for key, fit in fits.items()}
     cv_errors = {key: fit[2] for key, fit in fits.items() if fit[0] is not None}
@@ -1068,12 +1069,6 @@ def _label(effects) -> str:
 
 def _output_names(physics, n_outputs: int) -> list[str]:
     return [output_name(physics, i) for i in range(n_outputs)]
-
-
-def _measured(physics) -> tuple[int, ...] | None:
-    """The state each output reads, when the output map is a reading of states
-    (:class:`~sk_offwhite._physics.MeasuredStates`), else ``None``."""
-    return getattr(physics.output, "indices", None)
 
 
 def analyse_model(est, u, z, physics, *, x0=None, z_init_window=0):
