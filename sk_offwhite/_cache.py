@@ -107,6 +107,6 @@ def release_package_programs() -> int:
         function.clear_cache()
     # the programs are freed with the last reference to them; a full collection freed no
     # more than the young generations' (60 structures fitted and released: 499 against
-    # 500 MiB) and took 0.2 s a call
+    # 500 MiB) and took 0.1-0.2 s a call
     gc.collect(1)
     return len(cleared)
