@@ -198,10 +198,23 @@ def make_problem(layout, blocks, free, bounds, segments, weights) -> tuple[Probl
         to_device(lower),
         to_device(upper),
         to_device(omega_free, float),
-        cost_weights(weights),
+        cost_weights(_penalty_scale_per_entry(weights, np.shape(omega_free))),
         to_device(np.ones(free_index.shape[0])),
     )
     return problem, to_device(np.clip(base[free_index], lower, upper))
+
+
+def _penalty_scale_per_entry(weights, omega_shape) -> tuple:
+    """``weights`` with a scalar ``penalty_scale`` of a model with a dictionary spread over
+    :math:`\\Omega`'s shape: the physics-only stage of :mod:`~sk_offwhite._sparsity` (unit
+    scales) and the penalised stages (an array of :math:`s_{ij}`) then pass arrays of one
+    shape, and share one compiled program (the same values: multiplying by 1 is exact)."""
+    if not np.prod(omega_shape):
+        return weights
+    weights = weights if isinstance(weights, CostWeights) else CostWeights(*weights)
+    if np.ndim(weights.penalty_scale) > 0:
+        return weights
+    return weights._replace(penalty_scale=np.full(omega_shape, float(weights.penalty_scale)))
 
 
 class SolverOptions(NamedTuple):
