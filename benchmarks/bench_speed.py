@@ -22,7 +22,9 @@ prints (and writes ``bench_speed.md`` / ``.json`` in ``--out``, default
   dictionary, at 10³ and 10⁴ samples; min and median of interleaved repeats.
 * **grid against one fit** — ``fit_gamma_path`` over 8 values of γ with 3 contiguous
   folds, and ``GridSearchCV`` over the same γ and folds, against one fit at one γ, all
-  after a warm-up (and the first path cold).
+  after a warm-up (and the first path cold); and the work each does, whatever the
+  compilation: the Levenberg-Marquardt runs and iterations of the path and of the one fit
+  (in one process), and how many runs ended at ``max_iter``.
 * **memory** — resident set size over 100 fits in one process (growth per fit).
 * **main job** (``--main-job``) — the README's closed loop on the Cascaded Tanks in a
   fresh process, split into XLA compilation, tracing, lowering and the rest
@@ -36,6 +38,7 @@ starts, the main job included).
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import platform
@@ -321,14 +324,49 @@ def grid_against_one() -> dict:
         start = time.perf_counter()
         est.fit(u, z)
         out["one_fit_warm"] = time.perf_counter() - start
+        with _counted_solver_runs() as runs:
+            fit_gamma_path(est, u, z, n_gammas=8, cv=KFold(3))
+        out |= _iteration_counts("path", runs)
+        with _counted_solver_runs() as runs:
+            est.fit(u, z)
+        out |= _iteration_counts("one_fit", runs)
     for key in ("path_warm", "path_2jobs_warm", "grid_search_warm"):
         out[key.replace("_warm", "_ratio")] = out[key] / out["one_fit_warm"]
     return out
 
 
+@contextlib.contextmanager
+def _counted_solver_runs():
+    """The Levenberg-Marquardt runs made in this process inside the block (the package's
+    solver wrapped for the block's duration): a list of their ``SolverResult``."""
+    from sk_offwhite import _problem
+
+    solver, runs = _problem.levenberg_marquardt_on_device, []
+
+    def counted(*args, **kwargs):
+        runs.append(solver(*args, **kwargs))
+        return runs[-1]
+
+    _problem.levenberg_marquardt_on_device = counted
+    try:
+        yield runs
+    finally:
+        _problem.levenberg_marquardt_on_device = solver
+
+
+def _iteration_counts(name: str, runs: list) -> dict:
+    """How many solver runs, how many iterations in all, and how many runs ended at
+    ``max_iter``: the work a path does against one fit, whatever the compilation."""
+    return {
+        f"{name}_solver_runs": len(runs),
+        f"{name}_iterations": sum(run.n_iter for run in runs),
+        f"{name}_runs_at_max_iter": sum(run.message.startswith("max_iter") for run in runs),
+    }
+
+
 def _grid_search(est, gammas, u, z) -> dict:
     """``GridSearchCV`` over ``gammas`` (3 contiguous folds), a first time and again (warm),
-    the second with its counts of traces and XLA compilations."""
+    the second with its counts of traces, XLA compilations and solver iterations."""
     import collections
 
     import jax
@@ -342,14 +380,16 @@ def _grid_search(est, gammas, u, z) -> dict:
         events.update({event: 1})
 
     jax.monitoring.register_event_duration_secs_listener(count)
-    start = time.perf_counter()
-    search.fit(u, z)
-    elapsed = time.perf_counter() - start
+    with _counted_solver_runs() as runs:
+        start = time.perf_counter()
+        search.fit(u, z)
+        elapsed = time.perf_counter() - start
     jax.monitoring.unregister_event_duration_listener(count)
     return {
         "grid_search_warm": elapsed,
         "grid_search_traces": events["/jax/core/compile/jaxpr_trace_duration"],
         "grid_search_compiles": events["/jax/core/compile/backend_compile_duration"],
+        **_iteration_counts("grid_search", runs),
     }
 
 
