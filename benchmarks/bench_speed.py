@@ -21,10 +21,10 @@ prints (and writes ``bench_speed.md`` / ``.json`` in ``--out``, default
   one program); and the plain forward rollout, physics only and with a 10-term
   dictionary, at 10³ and 10⁴ samples; min and median of interleaved repeats.
 * **grid against one fit** — ``fit_gamma_path`` over 8 values of γ with 3 contiguous
-  folds, and ``GridSearchCV`` over the same γ and folds, against one fit at one γ, all
-  after a warm-up (and the first path cold); and the work each does, whatever the
-  compilation: the Levenberg-Marquardt runs and iterations of the path and of the one fit
-  (in one process), and how many runs ended at ``max_iter``.
+  folds, and ``GridSearchCV`` over the same γ and folds, against one fit at the γ the path
+  chose, all after a warm-up (and the first path cold); and the work each does, whatever
+  the compilation: the Levenberg-Marquardt runs and iterations of the path and of the one
+  fit (in one process), and how many runs ended at ``max_iter``.
 * **memory** — resident set size over 100 fits in one process (growth per fit).
 * **main job** (``--main-job``) — the README's closed loop on the Cascaded Tanks in a
   fresh process, split into XLA compilation, tracing, lowering and the rest
@@ -298,8 +298,9 @@ def per_step(repeats: int) -> list[dict]:
 
 
 def grid_against_one() -> dict:
-    """``fit_gamma_path`` over 8 γ (3 folds) against one fit at one γ, in one process and
-    with the folds in two worker processes (``n_jobs=2``; "cold" is their first path); and
+    """``fit_gamma_path`` over 8 γ (3 folds) against one fit at the γ it chose (the
+    estimator is left there), in one process and with the folds in two worker processes
+    (``n_jobs=2``; "cold" is their first path); and
     ``GridSearchCV`` over the path's 8 γ (3 folds, one process), warm, with the traces and
     compilations it makes (``jax.monitoring``)."""
     import pysindy as ps
