@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["Segments", "make_segments", "padded_length", "split_at_gaps"]
+__all__ = ["Segments", "make_segments", "pad_rows", "padded_length", "split_at_gaps"]
 
 
 class Segments(NamedTuple):
@@ -73,8 +73,8 @@ def make_segments(records: list[tuple], horizon: int | None) -> Segments:
             linked.append(w > 0)
             record_of.append(r)
     length = padded_length(max(piece_u.shape[0] for piece_u, _ in pieces))
-    u_pad = np.stack([_pad(piece_u, length) for piece_u, _ in pieces])
-    z_pad = np.stack([_pad(piece_z, length) for _, piece_z in pieces])
+    u_pad = np.stack([pad_rows(piece_u, length) for piece_u, _ in pieces])
+    z_pad = np.stack([pad_rows(piece_z, length) for _, piece_z in pieces])
     mask = np.zeros((len(pieces), length))
     for s, (piece_u, _) in enumerate(pieces):
         mask[s, : piece_u.shape[0]] = 1.0
@@ -93,7 +93,7 @@ def padded_length(length: int) -> int:
     return int(-(-length // granularity) * granularity)
 
 
-def _pad(values: np.ndarray, length: int) -> np.ndarray:
+def pad_rows(values: np.ndarray, length: int) -> np.ndarray:
     """Pad along the first axis with the last row (keeps padded inputs physical)."""
     extra = length - values.shape[0]
     if extra == 0:
