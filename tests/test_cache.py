@@ -99,6 +99,46 @@ def test_releasing_the_package_programs_keeps_the_applications_own():
     assert _run_on_device._cache_size() == 0 and mine._cache_size() == 1
 
 
+def test_a_fit_with_a_dictionary_runs_all_its_stages_on_one_program():
+    import numpy as np
+    import pysindy as ps
+
+    from sk_offwhite import GreyBoxSparseRegressor, release_package_programs
+    from sk_offwhite._lm_device import _run_on_device
+    from sk_offwhite.datasets import make_leaky_tank
+
+    data = make_leaky_tank(n_samples=100, random_state=0)
+    release_package_programs()
+    est = GreyBoxSparseRegressor(data.physics, ps.PolynomialLibrary(), gamma=1e-3, max_iter=20)
+    est.fit(data.u, data.z)
+    # the physics-only stage (unit penalty scales), the penalised stage and the refit
+    assert len(est.loss_history_) > 1 and np.isfinite(est.gamma_max_)
+    assert _run_on_device._cache_size() == 1
+
+
+def test_records_of_nearby_lengths_share_one_prediction_program():
+    import jax
+    import numpy as np
+
+    from sk_offwhite import GreyBoxSparseRegressor, release_package_programs
+    from sk_offwhite._rollout import free_run
+    from sk_offwhite.datasets import make_leaky_tank
+
+    data = make_leaky_tank(n_samples=400, random_state=0)
+    est = GreyBoxSparseRegressor(data.physics, max_iter=20).fit(data.u, data.z)
+    release_package_programs()
+    x0 = est.x0_
+    shorter = est.simulate(data.u[:341], x0=x0)
+    longer = est.simulate(data.u[:342], x0=x0)
+    assert free_run._cache_size() == 1  # both padded to 352 samples
+    np.testing.assert_array_equal(longer.outputs[:341], shorter.outputs)
+    model = est._fitted_model()
+    with jax.enable_x64(True):
+        params = {k: jax.numpy.asarray(v) for k, v in est._fitted_blocks().items()}
+        _, unpadded, _ = free_run(model, params, jax.numpy.asarray(x0), data.u[:341])
+    np.testing.assert_array_equal(shorter.outputs, np.asarray(unpadded))
+
+
 def test_the_residual_count_needs_no_trace_when_the_record_outnumbers_the_variables(caplog):
     import jax
 
