@@ -34,6 +34,32 @@ def test_the_calibration_refuses_bad_settings(kwargs, match):
         SensorCalibration(0, **kwargs)
 
 
+def test_a_set_with_a_calibration_is_fitted_from_one_initial_state(monkeypatch):
+    """With free window starts the calibration can carry the record while the state does
+    nothing (the Cascaded Tanks with ``max_iter=1000``): a set with an effect on the output
+    map is fitted on the whole record; other sets keep their shooting windows."""
+    from sk_offwhite import Leak
+    from sk_offwhite.loop import _loop
+    from sk_offwhite.loop._switchboard import effect_sets
+
+    data = make_nonlinear_sensor_tank(n_samples=200, random_state=0)
+    sensor, leak = SensorCalibration(0, 4.0, 2.0, name="sensor_x"), Leak(0)
+    board = effect_sets(data.physics, [sensor, leak], False)
+    horizons = []
+    estimator = _loop._estimator
+
+    def spied(physics, settings, **params):
+        horizons.append(settings.horizon)
+        return estimator(physics, settings, **params)
+
+    monkeypatch.setattr(_loop, "_estimator", spied)
+    settings = LoopSettings(horizon=50, max_iter=5, n_jobs=1)
+    for effects in [(leak,), (sensor,), (leak, sensor)]:
+        rmse, _ = _loop._quick_fit(board, effects, {}, data.u, data.z, settings)
+        assert np.isfinite(rmse)
+    assert horizons == [50, None, None]
+
+
 def test_a_zero_calibration_is_the_declared_output():
     data = make_nonlinear_sensor_tank(n_samples=200, random_state=0)
     model = augment(data.physics, SensorCalibration(0, 4.0, 2.0, name="sensor_x"))
