@@ -86,7 +86,9 @@ class LoopSettings:
     ``gammas`` is the grid of the (dimensionless) :math:`\gamma`; ``None`` uses
     ``n_gammas`` values from :math:`\gamma_{max}` down to ``gamma_eps`` times it
     (:func:`~sk_offwhite.gamma_grid`); a single value is fitted without a search.
-    ``horizon`` is the multiple-shooting window of the first stage of every final fit;
+    ``horizon`` is the multiple-shooting window of the first stage of every final fit and
+    of the fits of candidates and effect sets (but a set with an effect on the output map,
+    which is fitted on the whole record: ``_set_horizon``);
     ``cv_horizon`` that of the fits inside cross-validation (``None``: each training block
     is simulated whole, which is what the held-out blocks are scored on). ``min_gain`` is
     the relative reduction of the cross-validated RMSE an effect set must bring;
