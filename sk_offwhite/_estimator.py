@@ -29,8 +29,8 @@ from ._problem import (
     fit_records,
     initial_state_guess,
 )
-from ._rollout import free_run
-from ._segments import pad_rows, padded_length, split_at_gaps
+from ._rollout import free_run_record
+from ._segments import split_at_gaps
 from ._sparsity import SparseOptions
 from ._splitters import check_sample_index, warn_if_fragmented
 from ._validation import (
@@ -622,18 +622,10 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         return blocks
 
     def _simulate_record(self, model, u, x0):
-        """States, outputs and correction terms of a free run from ``x0``.
-
-        The input is padded to :func:`~sk_offwhite._segments.padded_length` (its last row
-        repeated) and the run cut back to the record: records of nearby lengths (the
-        held-out blocks of a cross-validation, 341 and 342 samples) then share one
-        compiled program, and a step depends only on the steps before it.
-        """
-        n_samples = u.shape[0]
-        padded = pad_rows(np.asarray(u), padded_length(n_samples))
+        """States, outputs and correction terms of a free run from ``x0``
+        (:func:`~sk_offwhite._rollout.free_run_record`)."""
         params = {k: to_device(v) for k, v in self._fitted_blocks().items()}
-        run = free_run(model, params, to_device(x0, float), to_device(padded))
-        return tuple(np.asarray(values)[:n_samples] for values in run)
+        return free_run_record(model, params, x0, u)
 
     def _initial_state(self, model, u, z_init, x0):
         if x0 is not None:

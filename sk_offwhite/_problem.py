@@ -20,7 +20,7 @@ from ._lm_device import PAD_TO, levenberg_marquardt_on_device
 from ._objective import CostWeights
 from ._optim import Problem, SolverResult, run_optax
 from ._physics import PhysicsModel, measured_states
-from ._rollout import Model, free_run
+from ._rollout import Model, free_run_record
 from ._segments import Segments, make_segments
 from ._sparsity import SparseOptions, fit_sparse, output_scale, state_scale
 from ._start import continuation_start, within_reach
@@ -82,7 +82,7 @@ def _window_initial_states(model, blocks, records, segments, horizon):
         if n_windows == 1:
             x0.append(start)
             continue
-        states, outputs, _ = free_run(model, params, jnp.asarray(start), u)
+        states, outputs, _ = free_run_record(model, params, start, u)
         if within_reach(outputs, z):
             x0.extend(np.asarray(states)[::horizon][:n_windows])
         else:

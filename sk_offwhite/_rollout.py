@@ -27,10 +27,14 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._backend import to_device
+from ._segments import pad_rows, padded_length
+
 __all__ = [
     "Model",
     "correction",
     "free_run",
+    "free_run_record",
     "model_output",
     "model_step",
     "multiply_add",
@@ -188,3 +192,17 @@ def free_run(model: Model, params: dict, x0, u):
     states, outputs, _ = simulate(model, params, x0, u)
     corrections = jax.vmap(lambda x, u_k: correction(model, params, x, u_k))(states, u)
     return states, outputs, corrections
+
+
+def free_run_record(model: Model, params: dict, x0, u) -> tuple[np.ndarray, ...]:
+    """:func:`free_run` of one record ``u``, as numpy arrays.
+
+    The input is padded to :func:`~sk_offwhite._segments.padded_length` (its last row
+    repeated) and the run cut back to the record: records of nearby lengths (the training
+    records and held-out blocks of a cross-validation, 341 and 342 samples) then share one
+    compiled program, and a step depends only on the steps before it.
+    """
+    n_samples = np.shape(u)[0]
+    padded = pad_rows(np.asarray(u), padded_length(n_samples))
+    run = free_run(model, params, to_device(x0, float), to_device(padded))
+    return tuple(np.asarray(values)[:n_samples] for values in run)

@@ -21,7 +21,7 @@ from collections.abc import Callable, Iterator
 import jax.numpy as jnp
 import numpy as np
 
-from ._rollout import free_run
+from ._rollout import free_run_record
 
 __all__ = ["FIRST_HORIZON", "continuation_start", "within_reach"]
 
@@ -68,7 +68,7 @@ def _free_runs_within_reach(model, warm, records) -> bool:
     """Whether the physics at ``warm`` simulates every record without exploding."""
     theta = jnp.asarray(warm["theta"])
     for start, (u, z) in zip(warm["starts"], records, strict=True):
-        _, outputs, _ = free_run(model, {"theta": theta}, jnp.asarray(start), u)
+        _, outputs, _ = free_run_record(model, {"theta": theta}, start, u)
         if not within_reach(outputs, z):
             return False
     return True
