@@ -60,6 +60,35 @@ def test_a_set_with_a_calibration_is_fitted_from_one_initial_state(monkeypatch):
     assert horizons == [50, None, None]
 
 
+@pytest.mark.filterwarnings("ignore:.*did not converge")
+def test_a_set_and_the_final_physics_with_a_calibration_are_fitted_on_the_whole_record(
+    monkeypatch,
+):
+    """The rule of the quick fits holds where a set is refitted before its CV and where the
+    chosen set is fitted as the final physics (both through ``_fit_set``)."""
+    from sk_offwhite import Leak
+    from sk_offwhite.loop import _loop
+    from sk_offwhite.loop._switchboard import effect_sets
+
+    data = make_nonlinear_sensor_tank(n_samples=200, random_state=0)
+    sensor, leak = SensorCalibration(0, 4.0, 2.0, name="sensor_x"), Leak(0)
+    board = effect_sets(data.physics, [sensor, leak], False)
+    horizons = []
+    fit_continued = _loop.fit_continued
+
+    def spied(est, u, z, horizon):
+        horizons.append(horizon)
+        return fit_continued(est, u, z, horizon)
+
+    monkeypatch.setattr(_loop, "fit_continued", spied)
+    settings = LoopSettings(horizon=50, max_iter=5, n_jobs=1, n_folds=2)
+    for effects in [(leak,), (sensor,), (leak, sensor)]:
+        failures = []
+        score, fitted = _loop._set_cv(board, effects, {}, data.u, data.z, settings, failures)
+        assert fitted is not None and np.isfinite(score), failures
+    assert horizons == [50, None, None]
+
+
 def test_a_zero_calibration_is_the_declared_output():
     data = make_nonlinear_sensor_tank(n_samples=200, random_state=0)
     model = augment(data.physics, SensorCalibration(0, 4.0, 2.0, name="sensor_x"))

@@ -355,8 +355,8 @@ def _set_cv(board, effects, warm, u, z, settings, failures):
     physics' fit would then judge the set from a start that belongs to another model."""
     model = board.model(effects, warm)
     label = "effects " + _label(effects)
-    fitted = _attempt(failures, label, fit_continued, _estimator(model, settings), u, z,
-                      settings.horizon)  # fmt: skip
+    fitted = _attempt(failures, label, _fit_set, _estimator(model, settings), effects, u, z,
+                      settings)  # fmt: skip
     if fitted is not None:
         model = warm_physics(model, fitted)
     return cross_validated_rmse(model, u, z, settings), fitted
@@ -506,6 +506,13 @@ def _set_horizon(effects, horizon: int | None) -> int | None:
     gain of 0 and calibration coefficients of -5·10⁴ (CV 1.36 against 0.17), and the loop
     added no effect. Simulated from one initial state, the state must follow the input."""
     return None if any(effect.target == "output" for effect in effects) else horizon
+
+
+def _fit_set(est: GreyBoxSparseRegressor, effects, u, z, settings: LoopSettings):
+    """:func:`fit_continued` of ``est`` (the physics with ``effects``) over the set's
+    shooting window (:func:`_set_horizon`): how an effect set and the final augmented
+    physics are fitted on the record."""
+    return fit_continued(est, u, z, _set_horizon(effects, settings.horizon))
 
 
 def _starts(warm: dict, effect, params: dict) -> list[dict]:
@@ -1014,8 +1021,8 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
     with _stage(clock, MODEL_LABELS["final"], settings):
         augmented = augment(start, *effects).with_parameters(**warm)
         final = _attempt(
-            failures, "augmented physics", fit_continued, _estimator(augmented, settings), u, z,
-            settings.horizon,
+            failures, "augmented physics", _fit_set, _estimator(augmented, settings), effects,
+            u, z, settings,
         ) or baseline  # fmt: skip
     fits["final"] = (final, None, dict(trail).get(_label(effects), declared_cv))
     fitted_augmented = warm_physics(augmented, final)
