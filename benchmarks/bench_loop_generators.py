@@ -10,7 +10,9 @@ the failures and the wall time. Everything is chosen on the estimation record; t
 validation record is only scored.
 
 Run: ``python benchmarks/bench_loop_generators.py [--short] [--delta]
-[--lm-scaling {per-variable,global}] [NAME ...]``.
+[--lm-scaling {per-variable,global}] [--max-iter N] [NAME ...]``; ``--max-iter`` sets
+every fit's iteration limit (``LoopSettings.max_iter``, default 300): a loop whose choice
+changes with it depends on where its fits stop rather than on the data.
 """
 
 from __future__ import annotations
@@ -103,10 +105,12 @@ def _parameter_error(result, data) -> float:
     )
 
 
-def run(name: str, short: bool, delta: bool, lm_scaling: str = "per-variable") -> None:
+def run(
+    name: str, short: bool, delta: bool, lm_scaling: str = "per-variable", max_iter: int = 300
+) -> None:
     make, length, kind, parameter = SYSTEMS[name]
     data = make(random_state=0, **({"n_samples": length} if short else {}))
-    settings = LoopSettings(fit_delta=delta, lm_scaling=lm_scaling)
+    settings = LoopSettings(fit_delta=delta, lm_scaling=lm_scaling, max_iter=max_iter)
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -142,9 +146,13 @@ def main(argv=None) -> None:
         "--lm-scaling", choices=("global", "per-variable"), default="per-variable",
         help="Levenberg-Marquardt's scaling in every fit (LoopSettings.lm_scaling)",
     )  # fmt: skip
+    parser.add_argument(
+        "--max-iter", type=int, default=LoopSettings().max_iter,
+        help="every fit's iteration limit (LoopSettings.max_iter)",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     for name in args.names or SYSTEMS:
-        run(name, args.short, args.delta, args.lm_scaling)
+        run(name, args.short, args.delta, args.lm_scaling, args.max_iter)
         jax.clear_caches()  # each candidate compiles its own program: release them
 
 

@@ -34,38 +34,10 @@ def test_the_calibration_refuses_bad_settings(kwargs, match):
         SensorCalibration(0, **kwargs)
 
 
-def test_a_set_with_a_calibration_is_fitted_from_one_initial_state(monkeypatch):
-    """With free window starts the calibration can carry the record while the state does
-    nothing (the Cascaded Tanks with ``max_iter=1000``): a set with an effect on the output
-    map is fitted on the whole record; other sets keep their shooting windows."""
-    from sk_offwhite import Leak
-    from sk_offwhite.loop import _loop
-    from sk_offwhite.loop._switchboard import effect_sets
-
-    data = make_nonlinear_sensor_tank(n_samples=200, random_state=0)
-    sensor, leak = SensorCalibration(0, 4.0, 2.0, name="sensor_x"), Leak(0)
-    board = effect_sets(data.physics, [sensor, leak], False)
-    horizons = []
-    estimator = _loop._estimator
-
-    def spied(physics, settings, **params):
-        horizons.append(settings.horizon)
-        return estimator(physics, settings, **params)
-
-    monkeypatch.setattr(_loop, "_estimator", spied)
-    settings = LoopSettings(horizon=50, max_iter=5, n_jobs=1)
-    for effects in [(leak,), (sensor,), (leak, sensor)]:
-        rmse, _ = _loop._quick_fit(board, effects, {}, data.u, data.z, settings)
-        assert np.isfinite(rmse)
-    assert horizons == [50, None, None]
-
-
-@pytest.mark.filterwarnings("ignore:.*did not converge")
-def test_a_set_and_the_final_physics_with_a_calibration_are_fitted_on_the_whole_record(
-    monkeypatch,
-):
-    """The rule of the quick fits holds where a set is refitted before its CV and where the
-    chosen set is fitted as the final physics (both through ``_fit_set``)."""
+def _fit_protocols(monkeypatch, fit):
+    """The shooting windows each fit of the three sets {leak}, {sensor}, {leak, sensor}
+    was started over (through ``fit_continued``, which ends on the whole record), when
+    fitted by ``fit(board, effects, u, z, settings)``."""
     from sk_offwhite import Leak
     from sk_offwhite.loop import _loop
     from sk_offwhite.loop._switchboard import effect_sets
@@ -83,10 +55,39 @@ def test_a_set_and_the_final_physics_with_a_calibration_are_fitted_on_the_whole_
     monkeypatch.setattr(_loop, "fit_continued", spied)
     settings = LoopSettings(horizon=50, max_iter=5, n_jobs=1, n_folds=2)
     for effects in [(leak,), (sensor,), (leak, sensor)]:
+        assert np.isfinite(fit(board, effects, data.u, data.z, settings))
+    return horizons
+
+
+@pytest.mark.filterwarnings("ignore:.*did not converge")
+def test_every_quick_fit_ends_on_the_whole_record_a_calibrated_set_starts_there(monkeypatch):
+    """With free window starts the calibration can carry the record while the state does
+    nothing (the Cascaded Tanks with ``max_iter=1000``): a set with an effect on the output
+    map is fitted on the whole record; the other sets start over their shooting windows and
+    end on the whole record too, the protocol all sets are ranked by."""
+    from sk_offwhite.loop import _loop
+
+    def quick(board, effects, u, z, settings):
+        return _loop._quick_fit(board, effects, {}, u, z, settings)[0]
+
+    assert _fit_protocols(monkeypatch, quick) == [50, None, None]
+
+
+@pytest.mark.filterwarnings("ignore:.*did not converge")
+def test_a_set_and_the_final_physics_with_a_calibration_are_fitted_on_the_whole_record(
+    monkeypatch,
+):
+    """The rule of the quick fits holds where a set is refitted before its CV and where the
+    chosen set is fitted as the final physics (both through ``_fit_set``)."""
+    from sk_offwhite.loop import _loop
+
+    def cross_validated(board, effects, u, z, settings):
         failures = []
-        score, fitted = _loop._set_cv(board, effects, {}, data.u, data.z, settings, failures)
-        assert fitted is not None and np.isfinite(score), failures
-    assert horizons == [50, None, None]
+        score, fitted = _loop._set_cv(board, effects, {}, u, z, settings, failures)
+        assert fitted is not None, failures
+        return score
+
+    assert _fit_protocols(monkeypatch, cross_validated) == [50, None, None]
 
 
 def test_a_zero_calibration_is_the_declared_output():
