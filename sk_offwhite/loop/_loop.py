@@ -62,6 +62,7 @@ from .._path import GammaPath, fit_gamma_path
 from .._physics import Parameter, measured_states
 from .._radial import RadialBasis
 from .._validation import check_record
+from ..certify import identifiability
 from ..diagnose import analyse_residuals, range_violations
 from ._candidates import Candidate, promoted_terms, propose_effects, unique_by_name
 from ._hypotheses import evidence_hypotheses, form_hypotheses
@@ -975,9 +976,52 @@ def _fit_declared(physics, u, z, settings):
         baseline = fit_continued(_estimator(physics, settings), u, z, settings.horizon)
     finally:
         gather(workers)
-    start = warm_physics(physics, baseline)
+    start, reset = _start_of_later_fits(physics, baseline, u, z)
     declared_cv = cross_validated_rmse(start, u, z, settings)
-    return baseline, start, baseline.simulate(u), declared_cv
+    return baseline, start, baseline.simulate(u), declared_cv, reset
+
+
+def _start_of_later_fits(physics, baseline: GreyBoxSparseRegressor, u, z):
+    """The physics started from the declared fit (:func:`warm_physics`), but for the
+    parameters that fit does not determine, which start from their declared values; and
+    ``{name: fitted value}`` of those.
+
+    Along a flat direction the fitted point is arbitrary, and a parameter that ran off
+    toward a limit can leave the later fits no way back: the RC circuit behind a diode
+    (:func:`~sk_offwhite.datasets.make_diode_rc`) fitted its load's time constant to
+    3.7·10²⁴ s (the charging path's loss mimicked the load), where the curve no longer
+    depends on it, and from there the loop added a promoted ``e**2`` term (validation
+    0.86 V) instead of the diode's drop (0.020 V from the declared 0.075 s)."""
+    start = warm_physics(physics, baseline)
+    reset = {
+        name: baseline.parameters_[name]
+        for name in _undetermined(baseline, u, z)
+        if name in physics.parameters and not physics.parameters[name].fixed
+    }
+    return start.with_parameters(**{name: physics.parameters[name] for name in reset}), reset
+
+
+def _undetermined(est: GreyBoxSparseRegressor, u, z) -> list[str]:
+    """Names of the variables of ``est``'s fit with an infinite standard error (on a flat
+    direction of the relative Hessian: :func:`~sk_offwhite.certify.identifiability`);
+    none when that cannot be computed."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            report = identifiability(est, u, z, include_omega=False)
+    except FIT_ERRORS:
+        return []
+    return [name for name, error in report.standard_errors.items() if not np.isfinite(error)]
+
+
+def _reset_notes(reset: dict, physics) -> list[str]:
+    """A note per declared parameter that later fits start from its declared value."""
+    return [
+        f"The declared physics' fit does not determine {name} (fitted {value:.4g}, its "
+        f"standard error infinite): the later fits start it from its declared value "
+        f"{physics.parameters[name].value:.4g}."
+        for name, value in reset.items()
+    ]
 
 
 def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = None):
@@ -1001,7 +1045,8 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
     notes: list[str] = []
     clock = StageClock()
     with _stage(clock, "declared physics", settings):
-        baseline, start, run, declared_cv = _fit_declared(physics, u, z, settings)
+        baseline, start, run, declared_cv, reset = _fit_declared(physics, u, z, settings)
+        notes += _reset_notes(reset, physics)
         facts = range_violations(z, run.outputs, _output_names(physics, z.shape[1]))
     with _stage(clock, "evidence", settings):
         evidence, hypotheses = _read_evidence(start, library, u, z, settings, failures)
