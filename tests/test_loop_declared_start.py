@@ -5,8 +5,7 @@ import numpy as np
 import pytest
 
 from sk_offwhite.datasets import make_diode_rc, make_leaky_tank
-from sk_offwhite.loop import LoopSettings
-from sk_offwhite.loop import _loop
+from sk_offwhite.loop import LoopSettings, _loop
 
 
 def _declared_fit(data):
