@@ -106,7 +106,11 @@ def _parameter_error(result, data) -> float:
 
 
 def run(
-    name: str, short: bool, delta: bool, lm_scaling: str = "per-variable", max_iter: int = 300
+    name: str,
+    short: bool,
+    delta: bool,
+    lm_scaling: str = "per-variable",
+    max_iter: int = LoopSettings.max_iter,
 ) -> None:
     make, length, kind, parameter = SYSTEMS[name]
     data = make(random_state=0, **({"n_samples": length} if short else {}))
@@ -147,7 +151,7 @@ def main(argv=None) -> None:
         help="Levenberg-Marquardt's scaling in every fit (LoopSettings.lm_scaling)",
     )  # fmt: skip
     parser.add_argument(
-        "--max-iter", type=int, default=LoopSettings().max_iter,
+        "--max-iter", type=int, default=LoopSettings.max_iter,
         help="every fit's iteration limit (LoopSettings.max_iter)",
     )  # fmt: skip
     args = parser.parse_args(argv)

@@ -84,7 +84,7 @@ def _window_initial_states(model, blocks, records, segments, horizon):
             continue
         states, outputs, _ = free_run_record(model, params, start, u)
         if within_reach(outputs, z):
-            x0.extend(np.asarray(states)[::horizon][:n_windows])
+            x0.extend(states[::horizon][:n_windows])
         else:
             x0.extend(initial_state_guess(start, model.output, z_k) for z_k in z[::horizon])
     return np.asarray(x0)

@@ -993,10 +993,10 @@ def _start_of_later_fits(physics, baseline: GreyBoxSparseRegressor, u, z):
     depends on it, and from there the loop added a promoted ``e**2`` term (validation
     0.86 V) instead of the diode's drop (0.020 V from the declared 0.075 s)."""
     start = warm_physics(physics, baseline)
-    reset = {
+    reset = {  # the names are the free parameters and initial states ("x1(0)")
         name: baseline.parameters_[name]
         for name in _undetermined(baseline, u, z)
-        if name in physics.parameters and not physics.parameters[name].fixed
+        if name in physics.parameters
     }
     return start.with_parameters(**{name: physics.parameters[name] for name in reset}), reset
 
