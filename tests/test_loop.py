@@ -39,7 +39,7 @@ from sk_offwhite.loop import (
     write_report,
 )
 from sk_offwhite.loop._hypotheses import _sign, feature_variables
-from sk_offwhite.loop._loop import _best_starts, _capped, _set_cv, _swap
+from sk_offwhite.loop._loop import _best_starts, _capped, _quick_fit, _set_cv, _swap
 from sk_offwhite.loop._progress import StageClock
 from sk_offwhite.loop._report import _json_rows, _table
 from sk_offwhite.loop._switchboard import effect_sets
@@ -386,7 +386,8 @@ def test_the_tail_score_finds_the_leak():
 def test_stepwise_drops_an_effect_that_adds_nothing():
     """A chosen set carrying a redundant effect (an output offset on a record without one)
     is refined to the smaller set whose CV error is within ``tolerance``, and the trail
-    gets the row of the set it tried."""
+    gets the row of the set it tried. The removal that leaves the offset alone misses the
+    whole record by more than that bar, and is not cross-validated."""
     data = make_leaky_tank(n_samples=400, random_state=1)
     settings = LoopSettings(n_folds=2, max_iter=100, fit_delta=False)
     effects = (Leak(0, name="leak_x"), OutputOffset(0, name="offset_x"))
@@ -397,8 +398,10 @@ def test_stepwise_drops_an_effect_that_adds_nothing():
         board, [], (effects, {}, cv), data.u, data.z, settings, failures, fits
     )
     assert [e.name for e in kept] == ["leak_x"] and failures == []
-    assert [label for label, _ in rows] == ["offset_x", "leak_x"]
+    assert [label for label, _ in rows] == ["leak_x"]
     assert dict(rows)["leak_x"] <= (1 + settings.tolerance) * cv
+    offset_alone = _quick_fit(board, effects[1:], {}, data.u, data.z, settings)
+    assert offset_alone[0] > (1 + settings.tolerance) * cv
     assert "offset_x_offset" not in params
 
 

@@ -772,8 +772,13 @@ def _swap(board, ranked, chosen, u, z, settings, failures, fits):
     """Stepwise refinement of the chosen set: each other candidate of the ``beam`` added to
     it (while it has fewer than ``max_effects``) or exchanged for one of its effects, and
     each of its effects dropped, started from the set's parameters. An addition or
-    exchange whose fit lowers the estimation RMSE (by ``min_gain`` for an addition) is
-    cross-validated, and the best is kept when its CV RMSE is lower by ``min_gain``.
+    exchange whose fit lowers the estimation RMSE (by ``min_gain`` for an addition), and a
+    removal whose fit on the whole record misses the data by no more than the chosen
+    set's CV RMSE allows a lighter set (``tolerance``), are cross-validated, and the best is
+    kept when its CV RMSE is lower by ``min_gain``. The removal's bar rests on the error a
+    model makes on the data it was fitted to being an optimistic estimate of its held-out
+    error (measured on the Cascaded Tanks: the two removals the bar excludes had CV RMSEs
+    38 and 18 times the chosen set's, and took 7 of the loop's 31 s).
     Greedy forward selection misses a set whose members help only in each other's
     company, reached through another order (a nonlinear sensor that needs the levels an
     overflow leaves). When no move improves, the best smaller set whose CV RMSE is within
@@ -792,7 +797,7 @@ def _swap(board, ranked, chosen, u, z, settings, failures, fits):
     lighter = (effects, warm, (1.0 + settings.tolerance) * cv)
     moves = [  # those cross-validated already were not better by min_gain
         move
-        for move in _moves(effects, warm, ranked, base[0], settings)
+        for move in _moves(effects, warm, ranked, (base[0], lighter[2]), settings)
         if _label(board.ordered(move[0])) not in fits
     ]
     fitted = _best_of(board, [(trial, starts) for trial, starts, _ in moves], u, z, settings,
@@ -815,17 +820,19 @@ def _swap(board, ranked, chosen, u, z, settings, failures, fits):
     return chosen[0], chosen[1], rows
 
 
-def _moves(effects, warm, ranked, rmse, settings):
+def _moves(effects, warm, ranked, bars, settings):
     """``(effects, starts, RMSE to beat)`` of each addition and exchange of the beam's
-    other named effects (see :func:`_starts`), then of each removal (no RMSE to beat).
+    other named effects (see :func:`_starts`), then of each removal; ``bars`` holds the
+    set's estimation RMSE (the additions' and exchanges' bar) and the removals' bar.
     Promoted dictionary terms are left to forward selection, where they must beat a named
     effect by ``tolerance``: a term can always absorb a little more, and would take the
     place of the effect it resembles."""
+    rmse, lighter = bars
     yield from _additions_and_exchanges(effects, warm, ranked, rmse, settings)
     if len(effects) > 1:
         for out in effects:
             kept = {n: p for n, p in warm.items() if n not in out.parameters()}
-            yield tuple(e for e in effects if e != out), [kept], np.inf
+            yield tuple(e for e in effects if e != out), [kept], lighter
 
 
 def _additions_and_exchanges(effects, warm, ranked, rmse, settings):
