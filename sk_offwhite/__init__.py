@@ -25,7 +25,12 @@ from ._effects import (
     augment,
     switched,
 )
-from ._estimator import DivergenceWarning, GreyBoxSparseRegressor, expected_failed_checks
+from ._estimator import (
+    DivergenceWarning,
+    GreyBoxSparseRegressor,
+    RunawayParameterWarning,
+    expected_failed_checks,
+)
 from ._path import GammaPath, fit_gamma_path, gamma_grid
 from ._physics import Parameter, PhysicsModel
 from ._radial import RadialBasis
@@ -54,6 +59,7 @@ __all__ = [
     "RadialBasis",
     "RelaxedLaw",
     "RidgeBasis",
+    "RunawayParameterWarning",
     "SensorCalibration",
     "SequenceSplit",
     "SequenceWarning",

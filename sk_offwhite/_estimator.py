@@ -41,6 +41,7 @@ from ._validation import (
     check_physics,
     is_experiment_list,
 )
+from ._verdict import runaway_parameters
 
 __all__ = ["GreyBoxSparseRegressor"]
 
@@ -468,6 +469,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
             outcome = self._solve(physics, basis, model, records, reference_only)
         self._store(physics, basis, model, outcome, n_outputs)
         self._fitted_data = records_digest(records)
+        _warn_if_runaway(physics, self.theta_)
         return self
 
     def _check_record_lengths(self, records) -> None:
@@ -787,6 +789,24 @@ def _check_counts(est: GreyBoxSparseRegressor) -> None:
 
 class DivergenceWarning(RuntimeWarning):
     """A simulation of the fitted model left the finite numbers."""
+
+
+class RunawayParameterWarning(UserWarning):
+    """A fitted parameter ran orders of magnitude away from its declared start, where the
+    data no longer determine it (:func:`~sk_offwhite._verdict.runaway_parameters`)."""
+
+
+def _warn_if_runaway(physics, theta) -> None:
+    for name, start, fitted in runaway_parameters(physics, theta):
+        warnings.warn(
+            f"Parameter {name!r} ran from {start:.3g} to {fitted:.3g} ({abs(fitted / start):.1e} "
+            "times its start): the simulation hardly depends on it there (a level never "
+            "reached, a time constant so long that its term vanishes), so the data do not "
+            "determine it; fix it, bound it, or drop its term "
+            "(sk_offwhite.certify.identifiability names such directions).",
+            RunawayParameterWarning,
+            stacklevel=5,  # the caller of fit (through scikit-learn's fit context)
+        )
 
 
 def _warn_if_diverged(outputs: np.ndarray) -> None:

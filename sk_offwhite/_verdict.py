@@ -21,7 +21,14 @@ import numpy as np
 from ._objective import n_fit_residuals
 from ._optim import SolverResult, fit_cost
 
-__all__ = ["NO_MODEL_FIT", "judged", "needs_restart", "with_fit_term"]
+__all__ = [
+    "NO_MODEL_FIT",
+    "RUNAWAY_FACTOR",
+    "judged",
+    "needs_restart",
+    "runaway_parameters",
+    "with_fit_term",
+]
 
 NO_MODEL_FIT = 1e2
 """Normalised fit term above which a fitted model is no model (RMS error of 10 output
@@ -70,3 +77,33 @@ def needs_restart(result: SolverResult) -> bool:
     that simulates worse than the outputs' means."""
     worse_than_mean = not result.converged and not result.fit <= 1.0
     return not result.fit <= NO_MODEL_FIT or worse_than_mean
+
+
+RUNAWAY_FACTOR = 1e6
+"""Factor by which a fitted parameter's magnitude must exceed its declared start's for
+:func:`runaway_parameters` to name it (a ratio: the same in any units)."""
+
+
+def runaway_parameters(physics, theta) -> list[tuple[str, float, float]]:
+    r"""``(name, start, fitted)`` of each free parameter of ``physics`` whose fitted value
+    ``theta`` (declaration order) ran away from its declared start :math:`\theta_0`:
+    :math:`|\hat\theta| >` :data:`RUNAWAY_FACTOR` :math:`|\theta_0|`, unless it sits at a
+    finite bound the user declared. A parameter started at zero has no scale to compare
+    with and is not judged.
+
+    Such a value is seldom a measurement: the simulation no longer depends on the
+    parameter there (a load's time constant at :math:`10^{19}` s switches its
+    discharge off), and the fit ran along a direction the data do not determine.
+    """
+    start = physics.parameter_values()
+    fitted = np.asarray(theta, float)
+    lower, upper = physics.parameter_bounds()
+    free = np.isin(physics.parameter_names, physics.free_parameter_names)
+    at_bound = np.isclose(fitted, lower) | np.isclose(fitted, upper)
+    too_far = np.abs(fitted) > RUNAWAY_FACTOR * np.abs(start)
+    runaway = free & (start != 0) & ~at_bound & too_far
+    return [
+        (name, float(start[k]), float(fitted[k]))
+        for k, name in enumerate(physics.parameter_names)
+        if runaway[k]
+    ]

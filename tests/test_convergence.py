@@ -1,14 +1,22 @@
 """converged_ is True only for a model: exploding fits fail loudly or restart from a start
 that works."""
 
+import warnings
+
 import jax.numpy as jnp
 import numpy as np
 import pytest
 from sklearn.exceptions import ConvergenceWarning
 
-from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel
+from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel, RunawayParameterWarning
 from sk_offwhite._optim import SolverResult
-from sk_offwhite._verdict import NO_MODEL_FIT, judged, needs_restart
+from sk_offwhite._verdict import (
+    NO_MODEL_FIT,
+    RUNAWAY_FACTOR,
+    judged,
+    needs_restart,
+    runaway_parameters,
+)
 
 TRUE_POLE = -0.2
 
@@ -155,3 +163,52 @@ def test_a_parameter_held_at_its_bound_leaves_the_others_free_to_converge(scale)
     ).fit(u, z)
     for name in ("a", "b"):
         assert est.parameters_[name] == pytest.approx(reference.parameters_[name], rel=1e-6)
+
+
+def _leaky_integrator(tau_true):
+    """``x+ = x - x / tau + b u`` with ``b = 0.5``; ``tau_true=None``: no leak at all."""
+    rng = np.random.default_rng(0)
+    u = rng.normal(size=(300, 1))
+    x, states = 0.0, []
+    for u_k in u[:, 0]:
+        states.append(x)
+        x = x - (0.0 if tau_true is None else x / tau_true) + 0.5 * u_k
+
+    def step(x, u, theta):
+        return jnp.array([x[0] - x[0] / theta["tau"] + theta["b"] * u[0]])
+
+    params = {"tau": Parameter(5.0), "b": Parameter(1.0)}
+    physics = PhysicsModel(step, [0], params, 1, 1, x0=[0.0])
+    return physics, u, np.asarray(states)[:, None] + 0.01 * rng.normal(size=(300, 1))
+
+
+def test_a_parameter_the_data_do_not_hold_is_named_when_it_runs_away():
+    """Without a leak in the data the leak's time constant runs off toward infinity: the
+    fit says so, naming it, and the determined gain is still right."""
+    physics, u, z = _leaky_integrator(None)
+    with pytest.warns(RunawayParameterWarning, match="'tau' ran from 5 to"):
+        est = GreyBoxSparseRegressor(physics).fit(u, z)
+    assert est.parameters_["tau"] > RUNAWAY_FACTOR * 5.0
+    np.testing.assert_allclose(est.parameters_["b"], 0.5, rtol=0.01)
+
+
+def test_a_determined_parameter_is_not_named():
+    physics, u, z = _leaky_integrator(8.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RunawayParameterWarning)
+        est = GreyBoxSparseRegressor(physics).fit(u, z)
+    np.testing.assert_allclose(est.parameters_["tau"], 8.0, rtol=0.05)
+
+
+def test_runaway_parameters_judges_free_parameters_with_a_scale_and_no_bound_there():
+    params = {
+        "grows": Parameter(2.0),
+        "shrinks": Parameter(-1.0),
+        "near": Parameter(1.0),
+        "from_zero": Parameter(0.0),
+        "bounded": Parameter(1.0, bounds=(0.0, 1e9)),
+        "fixed": Parameter(1.0, fixed=True),
+    }
+    physics = PhysicsModel(lambda x, u, theta: x, [0], params, 1, 1, x0=[0.0])
+    theta = [3e6, -2e6, 9e5, 1e12, 1e9, 1e9]
+    assert runaway_parameters(physics, theta) == [("grows", 2.0, 3e6), ("shrinks", -1.0, -2e6)]
