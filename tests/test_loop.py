@@ -1,6 +1,7 @@
 """The closed loop: from a poor physics-only fit to a named, added effect, before/after."""
 
 import logging
+import warnings
 from types import SimpleNamespace
 
 import numpy as np
@@ -20,6 +21,7 @@ from sk_offwhite import (
     Overflow,
     Parameter,
     PhysicsModel,
+    RunawayParameterWarning,
 )
 from sk_offwhite._kinds import Kinds
 from sk_offwhite.datasets import make_leaky_tank
@@ -403,6 +405,28 @@ def test_stepwise_drops_an_effect_that_adds_nothing():
     offset_alone = _quick_fit(board, effects[1:], {}, data.u, data.z, settings)
     assert offset_alone[0] > (1 + settings.tolerance) * cv
     assert "offset_x_offset" not in params
+
+
+def test_a_ranking_fit_keeps_a_runaway_level_to_itself(monkeypatch):
+    """A proposed effect the record never exercises runs its level off: the ranking fit
+    scores the set as it is and raises no RunawayParameterWarning (the declared physics'
+    fit and the final model's do)."""
+    data = make_leaky_tank(n_samples=300, random_state=0)
+    settings = LoopSettings(n_jobs=1, max_iter=50)
+    effect = Leak(0, name="leak_x")
+    board = effect_sets(data.physics, (effect,), shared=False)
+    fit_set = _loop._fit_set
+
+    def fit_set_whose_level_runs_away(*args):
+        message = "Parameter 'leak_x_rate' ran from 1 to 1e9"
+        warnings.warn(message, RunawayParameterWarning, stacklevel=2)
+        return fit_set(*args)
+
+    monkeypatch.setattr(_loop, "_fit_set", fit_set_whose_level_runs_away)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RunawayParameterWarning)
+        rmse, fitted = _quick_fit(board, (effect,), {}, data.u, data.z, settings)
+    assert np.isfinite(rmse) and "leak_x_rate" in fitted
 
 
 def _growing_model():

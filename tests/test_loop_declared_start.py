@@ -4,6 +4,7 @@ parameters that fit does not determine, which start from their declared values."
 import numpy as np
 import pytest
 
+from sk_offwhite import RunawayParameterWarning
 from sk_offwhite.datasets import make_diode_rc, make_leaky_tank
 from sk_offwhite.loop import LoopSettings, _loop
 
@@ -20,7 +21,8 @@ def test_a_parameter_the_declared_fit_runs_off_with_starts_from_its_declared_val
     capacitor too, so its fit drives the load's time constant toward infinity, where the
     curve no longer depends on it."""
     data = make_diode_rc(n_samples=600, random_state=0)
-    baseline = _declared_fit(data)
+    with pytest.warns(RunawayParameterWarning, match="'tau_load' ran from 0.075"):
+        baseline = _declared_fit(data)
     assert baseline.parameters_["tau_load"] > 1e6 * data.physics.parameters["tau_load"].value
     start, reset = _loop._start_of_later_fits(data.physics, baseline, data.u, data.z)
     assert list(reset) == ["tau_load"]
