@@ -452,6 +452,15 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         Returns
         -------
         self : GreyBoxSparseRegressor
+
+        Warns
+        -----
+        ConvergenceWarning
+            The solver stopped before its convergence rule was met, or at no model
+            (``converged_`` is then ``False``; the message says why).
+        RunawayParameterWarning
+            A free parameter ended more than :math:`10^6` times its declared start away,
+            where the data do not determine it.
         """
         _check_counts(self)
         return self._fit(u, z, sample_index, reference_only=False)
