@@ -22,6 +22,7 @@ from sk_offwhite import (
     Parameter,
     PhysicsModel,
     RunawayParameterWarning,
+    augment,
 )
 from sk_offwhite._kinds import Kinds
 from sk_offwhite.datasets import make_leaky_tank
@@ -405,6 +406,33 @@ def test_stepwise_drops_an_effect_that_adds_nothing():
     offset_alone = _quick_fit(board, effects[1:], {}, data.u, data.z, settings)
     assert offset_alone[0] > (1 + settings.tolerance) * cv
     assert "offset_x_offset" not in params
+
+
+def test_the_loop_on_a_physics_that_has_the_effect_adds_nothing():
+    """The leak the loop finds on the leaky tank (``test_loop_names_the_hidden_leak``)
+    already in the physics: the loop adds nothing, the null case of every discovery."""
+    data = make_leaky_tank(n_samples=400, random_state=1)
+    complete = augment(data.physics, Leak(0, name="leak_x"))
+    settings = LoopSettings(n_folds=2, max_iter=100, max_candidates=4, fit_delta=False)
+    result = close_the_loop(complete, data.suggested_library, data.u, data.z, settings=settings)
+    assert result.effects == () and result.failures == [] and result.chosen == "baseline"
+
+
+def test_no_candidate_repeats_a_mechanism_the_physics_models():
+    """An augmented physics (the loop's own result, say) holding a hard limit of the input:
+    the loop proposes neither that limit again, whose parameter would clash with its own
+    (a failed fit before), nor a soft saturation of the same input."""
+    physics = augment(
+        make_leaky_tank(n_samples=50).physics,
+        InputSaturation(0, 3.0, shape="clip", name="actuator_limit_u"),
+    )
+    proposed = [
+        InputSaturation(0, 3.0, shape="clip", name="actuator_limit_u"),
+        InputSaturation(0, 3.0, name="actuator_u"),
+        Leak(0, name="leak_x"),
+    ]
+    kept = _loop._not_modelled(physics, [Candidate(e, "proposed") for e in proposed])
+    assert [c.effect.name for c in kept] == ["leak_x"]
 
 
 def test_a_ranking_fit_keeps_a_runaway_level_to_itself(monkeypatch):

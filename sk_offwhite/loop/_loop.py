@@ -896,7 +896,8 @@ def _empty_delta(est) -> bool:
 
 
 def _candidates(physics, library, hypotheses, facts, run, u, settings):
-    """Catalogue effects and promoted dictionary terms, one per name."""
+    """Catalogue effects and promoted dictionary terms, one per name, without those of a
+    mechanism the physics already models (:func:`_not_modelled`)."""
     dt = time_step(physics)
     names = list(physics.state_names) + list(physics.input_names)
     found = propose_effects(
@@ -916,9 +917,21 @@ def _candidates(physics, library, hypotheses, facts, run, u, settings):
         Candidate(law, f"{law.parameter} is declared relaxable (fixed at {law.value:g})")
         for law in relaxations(physics)
     ]
-    return unique_by_name(
-        found + promoted_terms(hypotheses, library, names, dt, settings.n_promoted) + declared
+    return _not_modelled(
+        physics,
+        unique_by_name(
+            found + promoted_terms(hypotheses, library, names, dt, settings.n_promoted) + declared
+        ),
     )
+
+
+def _not_modelled(physics, candidates: list) -> list:
+    """``candidates`` without those whose mechanism (:attr:`~sk_offwhite.Effect.mechanism`)
+    an effect of ``physics`` already models: run on an augmented physics (its own result,
+    say), the loop would otherwise propose an effect it holds, whose parameters clash with
+    its own, or a second variant of one mechanism, which no effect set may hold."""
+    modelled = {effect.mechanism for effect in getattr(physics, "effects", ())}
+    return [c for c in candidates if c.effect.mechanism not in modelled]
 
 
 def _read_evidence(physics, library, u, z, settings, failures):
