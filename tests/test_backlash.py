@@ -17,9 +17,9 @@ from sk_offwhite import Backlash, GreyBoxSparseRegressor, Parameter, augment, sw
 from sk_offwhite._kinds import Kinds
 from sk_offwhite.datasets import make_backlash_servo, play
 from sk_offwhite.datasets._backlash import SERVO_THETA, SERVO_WIDTH
-from sk_offwhite.loop import LoopSettings, close_the_loop, score_models, write_report
+from sk_offwhite.loop import LoopSettings, _loop, close_the_loop, score_models, write_report
 from sk_offwhite.loop._candidates import propose_effects
-from sk_offwhite.loop._hypotheses import Hypothesis
+from sk_offwhite.loop._hypotheses import Hypothesis, Term
 
 
 def _values(physics, **updates):
@@ -189,3 +189,22 @@ def test_the_loop_cuts_the_validation_error_and_reports_the_hidden_state(loop_ru
     assert result.cv_errors["final"] == min(result.cv_errors.values())
     text = write_report(result, rows, records, tmp_path, title="servo").read_text()
     assert "play (backlash)" in text
+
+
+def test_no_dictionary_term_is_promoted_on_a_physics_with_hidden_states():
+    """A promoted term reads the declared states and the inputs in the step; with a
+    backlash's hidden state in the physics the dictionary's features hold that state too,
+    so no term is promoted there (each had failed as a candidate before)."""
+    data = make_backlash_servo(n_samples=50, random_state=0)
+    term = Term("omega", "u", 1.0, 0.1, 1.0, ("u",), column=1)
+    hypothesis = Hypothesis("omega", 1, ("u",), 1, None, terms=(term,), gain=0.2)
+
+    def promoted(physics):
+        names = [*physics.state_names, *physics.input_names]
+        found = _loop._promoted(
+            physics, [hypothesis], data.suggested_library, names, LoopSettings()
+        )
+        return [c.effect.name for c in found]
+
+    assert promoted(data.physics) == ["term_omega_u"]
+    assert promoted(augment(data.physics, Backlash(0, 0.05, name="backlash_u"))) == []
