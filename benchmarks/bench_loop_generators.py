@@ -117,19 +117,24 @@ def run(
     delta: bool,
     lm_scaling: str = "per-variable",
     max_iter: int = LoopSettings.max_iter,
-) -> None:
+) -> tuple:
+    """The loop on one generator's record, printed; ``(data, result, settings)``."""
     make, length, kind, parameter = SYSTEMS[name]
     data = make(random_state=0, **({"n_samples": length} if short else {}))
     settings = LoopSettings(fit_delta=delta, lm_scaling=lm_scaling, max_iter=max_iter)
+    result, seconds = _timed_loop(data.physics, data, settings)
+    _print_run(name, data, result, kind, parameter, seconds)
+    return data, result, settings
+
+
+def _timed_loop(physics, data, settings) -> tuple:
+    """:func:`close_the_loop` of ``physics`` on ``data``'s estimation record, its warnings
+    silenced, and its wall time in seconds."""
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        result = close_the_loop(
-            data.physics, data.suggested_library, data.u, data.z, settings=settings
-        )
-    seconds = time.perf_counter() - start
-    _print_run(name, data, result, kind, parameter, seconds)
-    return data, result, settings
+        result = close_the_loop(physics, data.suggested_library, data.u, data.z, settings=settings)
+    return result, time.perf_counter() - start
 
 
 def _print_run(name, data, result, kind, parameter, seconds) -> None:
@@ -155,11 +160,7 @@ def _print_run(name, data, result, kind, parameter, seconds) -> None:
 def again(name: str, data, result, settings) -> None:
     """The loop run on the physics ``result`` returned, started at its fitted values."""
     physics = warm_physics(result.final.physics_, result.final)
-    start = time.perf_counter()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        second = close_the_loop(physics, data.suggested_library, data.u, data.z, settings=settings)
-    seconds = time.perf_counter() - start
+    second, seconds = _timed_loop(physics, data, settings)
     rmse, cv = _validation(second, data), second.cv_errors
     nan = float("nan")
     print(

@@ -98,7 +98,7 @@ def runaway_parameters(physics, theta) -> list[tuple[str, float, float]]:
     start = physics.parameter_values()
     fitted = np.asarray(theta, float)
     lower, upper = physics.parameter_bounds()
-    free = np.isin(physics.parameter_names, physics.free_parameter_names)
+    free = np.array([not p.fixed for p in physics.parameters.values()])
     at_bound = np.isclose(fitted, lower) | np.isclose(fitted, upper)
     too_far = np.abs(fitted) > RUNAWAY_FACTOR * np.abs(start)
     runaway = free & (start != 0) & ~at_bound & too_far

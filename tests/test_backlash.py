@@ -201,9 +201,8 @@ def test_no_dictionary_term_is_promoted_on_a_physics_with_hidden_states():
 
     def promoted(physics):
         names = [*physics.state_names, *physics.input_names]
-        found = _loop._promoted(
-            physics, [hypothesis], data.suggested_library, names, LoopSettings()
-        )
+        library, dt = data.suggested_library, 1.0
+        found = _loop._promoted(physics, [hypothesis], library, names, dt, LoopSettings())
         return [c.effect.name for c in found]
 
     assert promoted(data.physics) == ["term_omega_u"]

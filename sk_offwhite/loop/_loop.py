@@ -805,7 +805,7 @@ def _swap(board, ranked, chosen, u, z, settings, failures, fits):
     lighter = (effects, warm, (1.0 + settings.tolerance) * cv)
     moves = [  # those cross-validated already were not better by min_gain
         move
-        for move in _moves(effects, warm, ranked, (base[0], lighter[2]), settings)
+        for move in _moves(effects, warm, ranked, base[0], lighter[2], settings)
         if _label(board.ordered(move[0])) not in fits
     ]
     fitted = _best_of(board, [(trial, starts) for trial, starts, _ in moves], u, z, settings,
@@ -828,14 +828,13 @@ def _swap(board, ranked, chosen, u, z, settings, failures, fits):
     return chosen[0], chosen[1], rows
 
 
-def _moves(effects, warm, ranked, bars, settings):
+def _moves(effects, warm, ranked, rmse, lighter, settings):
     """``(effects, starts, RMSE to beat)`` of each addition and exchange of the beam's
-    other named effects (see :func:`_starts`), then of each removal; ``bars`` holds the
-    set's estimation RMSE (the additions' and exchanges' bar) and the removals' bar.
+    other named effects (see :func:`_starts`), to beat the set's estimation RMSE ``rmse``,
+    then of each removal, to beat ``lighter`` (the bar of a smaller set).
     Promoted dictionary terms are left to forward selection, where they must beat a named
     effect by ``tolerance``: a term can always absorb a little more, and would take the
     place of the effect it resembles."""
-    rmse, lighter = bars
     yield from _additions_and_exchanges(effects, warm, ranked, rmse, settings)
     if len(effects) > 1:
         for out in effects:
@@ -917,11 +916,11 @@ def _candidates(physics, library, hypotheses, facts, run, u, settings):
         Candidate(law, f"{law.parameter} is declared relaxable (fixed at {law.value:g})")
         for law in relaxations(physics)
     ]
-    promoted = _promoted(physics, hypotheses, library, names, settings)
+    promoted = _promoted(physics, hypotheses, library, names, dt, settings)
     return _not_modelled(physics, unique_by_name(found + promoted + declared))
 
 
-def _promoted(physics, hypotheses, library, names, settings) -> list:
+def _promoted(physics, hypotheses, library, names, dt: float, settings) -> list:
     """The strongest dictionary terms as candidates (:func:`promoted_terms`), none on a
     physics with hidden states (an effect with memory, :mod:`sk_offwhite._hidden`): the
     dictionary's features then hold them, and a term, which reads the declared states
@@ -929,7 +928,7 @@ def _promoted(physics, hypotheses, library, names, settings) -> list:
     augmented physics, three such candidates failed)."""
     if physics.n_states > getattr(physics, "n_declared_states", physics.n_states):
         return []
-    return promoted_terms(hypotheses, library, names, time_step(physics), settings.n_promoted)
+    return promoted_terms(hypotheses, library, names, dt, settings.n_promoted)
 
 
 def _not_modelled(physics, candidates: list) -> list:
