@@ -71,7 +71,7 @@ def cost_problem(u, z, physics, library=None, horizon=None, weights=(0.1, 0.0, 0
     free = free_blocks(physics, basis, model, segments)
     layout = Layout.from_arrays(blocks)
     problem, free0 = make_problem(
-        layout, blocks, free, bound_blocks(physics, blocks), segments, weights
+        layout, blocks, free, bound_blocks(physics, blocks, records, segments), segments, weights
     )
     return model, layout, problem, free0
 

@@ -23,7 +23,13 @@ import numpy as np
 
 from ._physics import measured_states
 
-__all__ = ["DeclaredStates", "HiddenStateStep", "with_hidden_states"]
+__all__ = [
+    "DeclaredStates",
+    "HiddenStateStep",
+    "hidden_bounds",
+    "hidden_start",
+    "with_hidden_states",
+]
 
 
 class HiddenStateStep:
@@ -53,6 +59,39 @@ class HiddenStateStep:
 
     def __hash__(self) -> int:
         return hash(self._key())
+
+
+def hidden_start(step, x0, u_first, theta: dict, fixed=None) -> np.ndarray:
+    """``x0`` (a record's initial-state guess) with each effect's hidden states where a
+    record whose first input is ``u_first`` starts them (:meth:`Effect.hidden_start`);
+    entries marked in ``fixed`` and models without hidden states are left as they are."""
+    x0 = np.array(x0, dtype=float)
+    if not isinstance(step, HiddenStateStep):
+        return x0
+    start, u_first = step.n_declared, np.asarray(u_first, float).reshape(-1)
+    keep = np.zeros(x0.shape, bool) if fixed is None else np.asarray(fixed, bool)
+    for effect in step.effects:
+        stop = start + len(effect.hidden_states)
+        moved = np.asarray(effect.hidden_start(x0[start:stop], u_first, theta), float)
+        x0[start:stop] = np.where(keep[start:stop], x0[start:stop], moved)
+        start = stop
+    return x0
+
+
+def hidden_bounds(step, u, n_states: int) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper bounds of the ``n_states`` initial states on a record with inputs
+    ``u`` that the effects' hidden states set (:meth:`Effect.hidden_bounds`); the
+    declared states and models without hidden states are unbounded here."""
+    lower, upper = np.full(n_states, -np.inf), np.full(n_states, np.inf)
+    if not isinstance(step, HiddenStateStep):
+        return lower, upper
+    start = step.n_declared
+    for effect in step.effects:
+        stop = start + len(effect.hidden_states)
+        bounds = np.asarray(effect.hidden_bounds(u), float).reshape(stop - start, 2)
+        lower[start:stop], upper[start:stop] = bounds[:, 0], bounds[:, 1]
+        start = stop
+    return lower, upper
 
 
 class DeclaredStates:

@@ -162,6 +162,6 @@ def solver_problem(physics, records, horizon, with_library: bool, omega_start: f
     weights = CostWeights(1e-3, 1.0, 0.0, 10.0, 1e3)
     free = free_blocks(physics, basis, model, segments)
     problem, free0 = make_problem(
-        layout, blocks, free, bound_blocks(physics, blocks), segments, weights
+        layout, blocks, free, bound_blocks(physics, blocks, records, segments), segments, weights
     )
     return problem, free0, model, layout

@@ -93,7 +93,7 @@ def _problem_for(est, physics, u, z, library=None):
     layout = Layout.from_arrays(blocks)
     weights = (est.gamma, 0.0, 0.0, est.shooting_weight, est.l1_smoothing)
     problem, free0 = make_problem(
-        layout, blocks, free, bound_blocks(physics, blocks), segments, weights
+        layout, blocks, free, bound_blocks(physics, blocks, records, segments), segments, weights
     )
     return model, layout, problem, free0
 
