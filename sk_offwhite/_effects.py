@@ -59,6 +59,18 @@ def hinge(a, sharpness: float):
     return jax.nn.softplus(sharpness * a) / sharpness
 
 
+SHARPNESS = 1000.0
+r"""Default sharpness :math:`s` of the rounded corners of the hard input limit, the dead
+zones and the play (relative to the effect's own level or width, so unit-free). A corner
+moves the effect's edge by :math:`\ln 2 / s` of that width: 1.4 % at :math:`s = 50`,
+0.07 % at 1000. Measured with the closed loop on the generators (seed 0, 2000 samples,
+``bench_loop_generators.py``): at 50 the servo's play came back at 0.05058 for 0.05 and the
+heated block's limit at 60.03 for 60 (declared parameters within 0.28 % and 0.34 %), and
+the loop run again on each result added a dead zone that made up for the corners; at 1000,
+0.05002 and 60.00 (0.02 % and 0.06 %), validation errors 12 % and 8 % lower, and the
+second loops add nothing. The dead-zone motor, the diode and the clearance are the same
+to the third digit."""
+
 RELATIVE_FLOOR = 1e-6
 """A positive level or width stays above this fraction of its start: a floor in the
 parameter's own scale, so that a fit in other units meets the same floor."""
@@ -353,7 +365,7 @@ class InputSaturation(Effect):
         level: float,
         *,
         shape: str = "tanh",
-        sharpness: float = 50.0,
+        sharpness: float = SHARPNESS,
         name: str = "actuator",
     ):
         if shape not in self.SHAPES:
@@ -663,7 +675,7 @@ class DeadZone(Effect):
 
     target = "input"
 
-    def __init__(self, input: int, width: float, *, sharpness: float = 50.0, name="dead_zone"):
+    def __init__(self, input: int, width: float, *, sharpness: float = SHARPNESS, name="dead_zone"):
         if not width > 0:
             raise ValueError(f"width must be positive, got {width!r}.")
         self.input, self.width, self.sharpness, self.name = (
@@ -713,7 +725,7 @@ class DifferenceDeadZone(Effect):
         width: float,
         *,
         one_sided: bool = False,
-        sharpness: float = 50.0,
+        sharpness: float = SHARPNESS,
         name: str = "drop",
     ):
         if not width > 0:
@@ -764,7 +776,9 @@ class Backlash(Effect):
 
     target = "hidden"
 
-    def __init__(self, input: int, width: float, *, position=0.0, sharpness=50.0, name="backlash"):
+    def __init__(
+        self, input: int, width: float, *, position=0.0, sharpness=SHARPNESS, name="backlash"
+    ):
         if not width > 0:
             raise ValueError(f"width must be positive, got {width!r}.")
         self.input, self.width, self.position = int(input), float(width), float(position)
