@@ -6,8 +6,10 @@ the effects added, whether one of them is of the hidden effect's kind, the fitte
 parameter against the truth (``hidden_effect["rates"]`` where the generator gives it), the
 largest relative error of the declared parameters, the validation RMSE of the declared and
 augmented physics (``init_window`` protocol, 50 samples), the model the loop chose by CV,
-the failures and the wall time. Everything is chosen on the estimation record; the
-validation record is only scored.
+the failures, the wall time, and the Ljung-Box p-value of the declared and augmented
+physics' simulation residuals on the estimation record (25 lags: a p-value below 0.01
+says the residual is not white, something is left to explain). Everything is chosen on
+the estimation record; the validation record is only scored.
 
 With ``--again`` the loop then runs a second time on the physics it returned (the
 augmented physics, started at its fitted values) and prints what it adds there, the CV
@@ -57,7 +59,13 @@ from sk_offwhite.datasets import (
     make_pendulum_drag,
     make_saturating_actuator,
 )
-from sk_offwhite.loop import LoopSettings, close_the_loop, score_models, warm_physics
+from sk_offwhite.loop import (
+    LoopSettings,
+    analyse_model,
+    close_the_loop,
+    score_models,
+    warm_physics,
+)
 
 
 def _tanks(**kwargs):
@@ -100,6 +108,13 @@ SYSTEMS = {
 def _validation(result, data) -> dict:
     rows = score_models(result, {"validation": (data.u_val, data.z_val)})
     return {r["model"]: r["rmse"] for r in rows if r["protocol"] == "init_window"}
+
+
+def _whiteness(est, data) -> str:
+    """Ljung-Box p-value (25 lags) of ``est``'s simulation residual on the estimation
+    record, per output: is anything left for another effect to explain?"""
+    report = analyse_model(est, data.u, data.z, est.physics_)
+    return ", ".join(f"{w.p_value:.2g}" for w in report.whiteness.values() if w is not None)
 
 
 def _parameter_error(result, data) -> float:
@@ -153,7 +168,9 @@ def _print_run(name, data, result, kind, parameter, seconds) -> None:
         f"within {_parameter_error(result, data):.2%}; validation RMSE "
         f"{rmse['declared physics']:.4g} -> {rmse['augmented physics']:.4g} "
         f"({1 - rmse['augmented physics'] / rmse['declared physics']:.0%} cut); chosen "
-        f"{result.chosen}; failures {len(result.failures)}; {seconds:.0f} s"
+        f"{result.chosen}; failures {len(result.failures)}; {seconds:.0f} s; residual "
+        f"Ljung-Box p declared {_whiteness(result.baseline, data)}, augmented "
+        f"{_whiteness(result.final, data)}"
     )
 
 
@@ -167,7 +184,8 @@ def again(name: str, data, result, settings) -> None:
         f"{name} again: effects added {[e.name for e in second.effects]}; CV RMSE "
         f"{cv.get('baseline', nan):.4g} -> {cv.get('final', nan):.4g}; validation RMSE "
         f"{rmse.get('declared physics', nan):.4g} -> {rmse.get('augmented physics', nan):.4g}; "
-        f"chosen {second.chosen}; failures {len(second.failures)}; {seconds:.0f} s"
+        f"chosen {second.chosen}; failures {len(second.failures)}; {seconds:.0f} s; "
+        f"residual Ljung-Box p {_whiteness(second.final, data)}"
     )
     for failure in second.failures:
         print(f"  failure: {failure}")
