@@ -327,8 +327,9 @@ def _hidden_starts_inside(settings: FitSettings, outcome: FitOutcome) -> list | 
     input starts them (:func:`~sk_offwhite._hidden.hidden_start`), or ``None`` when that
     moves none. A start the first step forgets (a play's position beyond the play) has
     no gradient: a fit that pushed it there cannot bring it back, and a fit restarted
-    from inside can find a lower cost (measured on the servo: fit term 0.002079 against
-    0.002022 from inside, and a better start for the folds)."""
+    from inside can find a lower cost (the servo refitted from the first loop's result:
+    ``fit_error_`` 0.002079 with the position where that fit had left it, 0.002022 with
+    it inside)."""
     physics = settings.physics
     starts = np.asarray(outcome.blocks["x0"])[np.asarray(outcome.segments.linked) == 0]
     theta = dict(zip(physics.parameter_names, outcome.blocks["theta"], strict=True))
