@@ -810,10 +810,13 @@ class Backlash(Effect):
         :math:`[\min u - R,\ \max u + R]` with :math:`R = \max u - \min u`. A start
         farther out is held at the play's edge by the first step as long as :math:`w \le R`
         (a wider play never moves), so the bounds remove no model; without them a fit
-        can run the start along that flat direction (measured: :math:`1.7\cdot10^{14}`,
-        where the step's rounding is a third of the play)."""
+        can run the start along that flat direction (measured on the servo:
+        :math:`1.7\cdot10^{14}` rad, where doubles are 0.03 rad apart against a half-width
+        of 0.05). A constant input (:math:`R = 0`) bounds nothing."""
         command = np.asarray(u, float)[:, self.input]
         low, high = float(command.min()), float(command.max())
+        if not high > low:
+            return ((-np.inf, np.inf),)
         return ((2 * low - high, 2 * high - low),)
 
     def advance(self, hidden, u, theta):

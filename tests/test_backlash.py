@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from sk_offwhite import Backlash, GreyBoxSparseRegressor, Parameter, augment, switched
-from sk_offwhite._hidden import hidden_start
+from sk_offwhite._hidden import hidden_bounds, hidden_start
 from sk_offwhite._kinds import Kinds
 from sk_offwhite._problem import record_guess
 from sk_offwhite.datasets import make_backlash_servo, play
@@ -129,6 +129,21 @@ def test_a_record_starts_the_play_inside_it(servo):
     theta = {name: p.value for name, p in model.parameters.items()}
     guess = record_guess(model, servo.u, servo.z, theta)
     assert guess[2] == servo.u[0, 0] and model.x0[2] == 1e6
+
+
+def test_a_record_bounds_the_play_start_by_its_input_range(servo):
+    effect = Backlash(0, 0.05, name="play")
+    commands = np.array([[0.1], [0.4], [0.2]])
+    np.testing.assert_allclose(effect.hidden_bounds(commands), [[-0.2, 0.7]])
+    np.testing.assert_allclose(switched(effect).hidden_bounds(commands), [[-0.2, 0.7]])
+    assert effect.hidden_bounds(np.full((5, 1), 0.3)) == ((-np.inf, np.inf),)
+    model = augment(servo.physics, effect)
+    lower, upper = hidden_bounds(model.step, servo.u, model.n_states)
+    span = np.ptp(servo.u[:, 0])
+    np.testing.assert_allclose(lower, [-np.inf, -np.inf, servo.u[:, 0].min() - span])
+    np.testing.assert_allclose(upper, [np.inf, np.inf, servo.u[:, 0].max() + span])
+    unbounded = hidden_bounds(servo.physics.step, servo.u, 2)
+    np.testing.assert_array_equal(unbounded, [[-np.inf] * 2, [np.inf] * 2])
 
 
 def test_a_play_position_beyond_the_play_does_not_freeze_the_initial_state(servo):
