@@ -19,7 +19,6 @@ from sklearn.utils.validation import _check_feature_names, _check_sample_weight,
 from ._backend import to_device
 from ._basis import compile_basis
 from ._equations import format_equations
-from ._hidden import hidden_start
 from ._initial import estimate_initial_state
 from ._objective import CostWeights
 from ._optim import LM_SCALINGS
@@ -648,8 +647,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         if z_init is None or len(z_init) == 0:
             return self.x0_
         n = len(z_init)
-        guess = initial_state_guess(self.x0_, self.physics_.output, z_init[0])
-        guess = hidden_start(self.physics_.step, guess, u[0], self.parameters_)
+        guess = initial_state_guess(self.x0_, self.physics_, u[0], z_init[0], self.parameters_)
         return estimate_initial_state(
             model, self._fitted_blocks(), u[:n], z_init, guess, np.ones_like(self.x0_, bool)
         )

@@ -40,13 +40,19 @@ class HiddenStateStep:
         self.inner, self.effects, self.n_declared = inner, effects, int(n_declared)
         self.__name__ = getattr(inner, "__name__", "step")
 
-    def __call__(self, x, u, theta):
-        start, hidden_next = self.n_declared, []
+    def slices(self):
+        """``(effect, slice)`` of each effect's hidden states in the state vector."""
+        start = self.n_declared
         for effect in self.effects:
             stop = start + len(effect.hidden_states)
-            u, h = effect.advance(x[start:stop], u, theta)
-            hidden_next.append(jnp.reshape(h, (stop - start,)).astype(x.dtype))
+            yield effect, slice(start, stop)
             start = stop
+
+    def __call__(self, x, u, theta):
+        hidden_next = []
+        for effect, part in self.slices():
+            u, h = effect.advance(x[part], u, theta)
+            hidden_next.append(jnp.reshape(h, (part.stop - part.start,)).astype(x.dtype))
         declared = self.inner(x[: self.n_declared], u, theta)
         declared = jnp.asarray(declared, dtype=x.dtype).reshape(self.n_declared)
         return jnp.concatenate([declared, *hidden_next])
@@ -68,13 +74,11 @@ def hidden_start(step, x0, u_first, theta: dict, fixed=None) -> np.ndarray:
     x0 = np.array(x0, dtype=float)
     if not isinstance(step, HiddenStateStep):
         return x0
-    start, u_first = step.n_declared, np.asarray(u_first, float).reshape(-1)
+    u_first = np.asarray(u_first, float).reshape(-1)
     keep = np.zeros(x0.shape, bool) if fixed is None else np.asarray(fixed, bool)
-    for effect in step.effects:
-        stop = start + len(effect.hidden_states)
-        moved = np.asarray(effect.hidden_start(x0[start:stop], u_first, theta), float)
-        x0[start:stop] = np.where(keep[start:stop], x0[start:stop], moved)
-        start = stop
+    for effect, part in step.slices():
+        moved = np.asarray(effect.hidden_start(x0[part], u_first, theta), float)
+        x0[part] = np.where(keep[part], x0[part], moved)
     return x0
 
 
@@ -85,12 +89,9 @@ def hidden_bounds(step, u, n_states: int) -> tuple[np.ndarray, np.ndarray]:
     lower, upper = np.full(n_states, -np.inf), np.full(n_states, np.inf)
     if not isinstance(step, HiddenStateStep):
         return lower, upper
-    start = step.n_declared
-    for effect in step.effects:
-        stop = start + len(effect.hidden_states)
-        bounds = np.asarray(effect.hidden_bounds(u), float).reshape(stop - start, 2)
-        lower[start:stop], upper[start:stop] = bounds[:, 0], bounds[:, 1]
-        start = stop
+    for effect, part in step.slices():
+        bounds = np.asarray(effect.hidden_bounds(u), float).reshape(-1, 2)
+        lower[part], upper[part] = bounds[:, 0], bounds[:, 1]
     return lower, upper
 
 

@@ -21,7 +21,7 @@ from ._lm_device import PAD_TO, levenberg_marquardt_on_device
 from ._objective import CostWeights
 from ._optim import Problem, SolverResult, run_optax
 from ._physics import PhysicsModel, measured_states
-from ._rollout import Model, free_run_record
+from ._rollout import Model, free_run_record, theta_dict
 from ._segments import Segments, make_segments
 from ._sparsity import SparseOptions, fit_sparse, output_scale, state_scale
 from ._start import continuation_start, within_reach
@@ -76,6 +76,7 @@ def _window_initial_states(model, blocks, records, segments, horizon):
     where that run explodes (:func:`~sk_offwhite._start.within_reach`), the record's first
     state with the directly measured states set to the measurement at the window's start."""
     params = {k: jnp.asarray(v) for k, v in blocks.items() if k != "x0"}
+    theta = theta_dict(model, blocks["theta"])
     x0 = []
     for r, (u, z) in enumerate(records):
         start = blocks["x0"][np.flatnonzero(segments.record == r)[0]]
@@ -87,36 +88,27 @@ def _window_initial_states(model, blocks, records, segments, horizon):
         if within_reach(outputs, z):
             x0.extend(states[::horizon][:n_windows])
         else:
-            theta = dict(zip(model.parameter_names, blocks["theta"], strict=True))
             x0.extend(
-                hidden_start(model.step, initial_state_guess(start, model.output, z_k), u_k, theta)
+                initial_state_guess(start, model, u_k, z_k, theta)
                 for u_k, z_k in zip(u[::horizon], z[::horizon], strict=True)
             )
     return np.asarray(x0)
 
 
-def initial_state_guess(base, output, z_first, fixed=None) -> np.ndarray:
-    """``base`` with the directly measured, non-fixed states set to the first measurement.
-
-    Applies when the output map is :class:`~sk_offwhite._physics.MeasuredStates`. Hidden
-    states are set by :func:`~sk_offwhite._hidden.hidden_start` (see :func:`record_guess`).
-    """
+def initial_state_guess(base, model, u_first, z_first, theta: dict, fixed=None) -> np.ndarray:
+    """``base`` with its non-fixed states set from a record's first sample: the directly
+    measured ones to the first measurement ``z_first`` (when ``model.output`` is
+    :class:`~sk_offwhite._physics.MeasuredStates`), the hidden ones where the first input
+    ``u_first`` starts them (:func:`~sk_offwhite._hidden.hidden_start`, ``theta`` the
+    parameters by name). ``model`` is a physics or a compiled model (its ``step`` and
+    ``output``)."""
     guess = np.array(base, dtype=float)
-    indices = measured_states(output)
+    indices = measured_states(model.output)
     if indices is not None:
         measured = np.asarray(indices)
         free = np.ones(measured.shape, bool) if fixed is None else ~fixed[measured]
         guess[measured[free]] = np.asarray(z_first)[free]
-    return guess
-
-
-def record_guess(physics, u, z, theta: dict) -> np.ndarray:
-    """The initial-state guess of a record ``(u, z)``: ``physics.x0`` with its measured
-    states set to the first measurement (:func:`initial_state_guess`) and its hidden
-    states where the first input starts them (:func:`~sk_offwhite._hidden.hidden_start`,
-    ``theta`` the parameters by name); fixed entries kept."""
-    guess = initial_state_guess(physics.x0, physics.output, z[0], physics.x0_fixed)
-    return hidden_start(physics.step, guess, np.asarray(u)[0], theta, physics.x0_fixed)
+    return hidden_start(model.step, guess, u_first, theta, fixed)
 
 
 def _apply_warm(blocks: dict, guesses: list, warm: dict, fixed: np.ndarray) -> list:
@@ -150,14 +142,17 @@ def initial_blocks(physics, basis, model, records, segments, horizon, warm=None)
 
     Each record starts from ``physics.x0`` with its measured states set to the record's
     first measurement and its hidden states where its first input starts them
-    (:func:`record_guess`). ``warm`` (blocks of an earlier fit, its
+    (:func:`initial_state_guess`). ``warm`` (blocks of an earlier fit, its
     per-record initial states under ``"starts"``, its ``theta`` a vector or a mapping by
     parameter name) replaces these values where the shapes or names agree; fixed
     parameters keep their declared values.
     """
     blocks = {"theta": physics.parameter_values()}
-    declared = dict(zip(physics.parameter_names, blocks["theta"], strict=True))
-    guesses = [record_guess(physics, u, z, declared) for u, z in records]
+    declared = theta_dict(physics, blocks["theta"])
+    guesses = [
+        initial_state_guess(physics.x0, physics, u[0], z[0], declared, physics.x0_fixed)
+        for u, z in records
+    ]
     if model.basis is not None:
         blocks["omega"] = np.zeros(basis.omega_trainable.shape)
         blocks.update({k: np.asarray(v, float) for k, v in basis.init_params.items()})
@@ -332,7 +327,7 @@ def _hidden_starts_inside(settings: FitSettings, outcome: FitOutcome) -> list | 
     it inside)."""
     physics = settings.physics
     starts = np.asarray(outcome.blocks["x0"])[np.asarray(outcome.segments.linked) == 0]
-    theta = dict(zip(physics.parameter_names, outcome.blocks["theta"], strict=True))
+    theta = theta_dict(physics, outcome.blocks["theta"])
     moved = [
         hidden_start(physics.step, x0, u[0], theta, physics.x0_fixed)
         for x0, (u, _) in zip(starts, settings.records, strict=True)

@@ -16,7 +16,7 @@ import pytest
 from sk_offwhite import Backlash, GreyBoxSparseRegressor, Parameter, augment, switched
 from sk_offwhite._hidden import hidden_bounds, hidden_start
 from sk_offwhite._kinds import Kinds
-from sk_offwhite._problem import record_guess
+from sk_offwhite._problem import initial_state_guess
 from sk_offwhite.datasets import make_backlash_servo, play
 from sk_offwhite.datasets._backlash import SERVO_THETA, SERVO_WIDTH
 from sk_offwhite.loop import LoopSettings, _loop, close_the_loop, score_models, write_report
@@ -127,7 +127,7 @@ def test_a_record_starts_the_play_inside_it(servo):
     np.testing.assert_array_equal(hidden_start(model.step, x0, [0.2], play_at, fixed), x0)
     np.testing.assert_array_equal(hidden_start(servo.physics.step, x0[:2], [0.2], {}), x0[:2])
     theta = {name: p.value for name, p in model.parameters.items()}
-    guess = record_guess(model, servo.u, servo.z, theta)
+    guess = initial_state_guess(model.x0, model, servo.u[0], servo.z[0], theta, model.x0_fixed)
     assert guess[2] == servo.u[0, 0] and model.x0[2] == 1e6
 
 
