@@ -42,6 +42,7 @@ from sk_offwhite import (
     Parameter,
     QuadraticDrag,
     SensorCalibration,
+    SensorStep,
     Stiffness,
 )
 from sk_offwhite.datasets import (
@@ -58,6 +59,7 @@ from sk_offwhite.datasets import (
     make_nonlinear_sensor_tank,
     make_pendulum_drag,
     make_saturating_actuator,
+    make_stepped_sensor_tank,
 )
 from sk_offwhite.loop import (
     LoopSettings,
@@ -94,6 +96,12 @@ SYSTEMS = {
     "actuator": (make_saturating_actuator, 500, InputSaturation, None),
     "tanks": (_tanks, 500, Overflow, None),
     "sensor": (make_nonlinear_sensor_tank, 400, SensorCalibration, None),
+    "stepped_sensor": (
+        make_stepped_sensor_tank,
+        400,
+        SensorStep,
+        ("step_x_height", "step_height"),
+    ),
     "heater": (make_heated_block, 1000, InputSaturation, ("actuator_limit_P_level", "limit")),
     "diode": (make_diode_rc, 600, DifferenceDeadZone, ("drop_e_v_width", "drop")),
     "clearance": (

@@ -42,6 +42,7 @@ __all__ = [
     "QuadraticDrag",
     "RelaxedLaw",
     "SensorCalibration",
+    "SensorStep",
     "Stiffness",
     "Switched",
     "SwitchedTerm",
@@ -121,6 +122,9 @@ class Effect:
     target = "state"
     replaces_declared = False
     """Whether the effect's parameters replace declared, relaxable ones of the same name."""
+    reads_output = False
+    """Whether an output effect acts on the final reading: after every other output effect,
+    whatever the order the effects are given in (:class:`SensorStep`)."""
     hidden_states: tuple[str, ...] = ()
     """Names of the hidden states the effect carries (see :mod:`sk_offwhite._hidden`)."""
 
@@ -464,6 +468,78 @@ class SensorCalibration(Effect):
         return (
             f"the sensor of {output_names[self.output]} reads a degree-{self.degree} "
             "polynomial of it (an uncalibrated, nonlinear sensor)"
+        )
+
+
+class SensorStep(Effect):
+    r"""The reading of output ``output`` steps by a height where it passes a level.
+
+    A sensor whose reading is discontinuous (a seam in a capacitive level strip, a worn
+    spot on a potentiometer) jumps each time the quantity passes one value:
+
+    .. math::
+
+        z \leftarrow z + H\,\sigma\!\left(\frac{z - L}{c}\right),
+
+    with :math:`\sigma` the logistic function and parameters ``{name}_level``
+    (:math:`L`) and ``{name}_height`` (:math:`H`, positive when the reading steps up as
+    the level rises), both in the output's units: below the level the reading is what
+    the rest of the model says, above it :math:`H` more (an offset of the whole reading
+    is another effect, :class:`OutputOffset`). The step is rounded over ``corner``
+    (:math:`c`, output units; fitted as ``{name}_corner`` with ``fit_corner=True``, see
+    :class:`Overflow`); the loop sets it to 2.5 % of the simulated output's standard
+    deviation, starts :math:`L` and :math:`H` from the measured jumps
+    (:func:`~sk_offwhite.diagnose.output_jumps`) and keeps :math:`L` within
+    ``level_bounds``, the measured values the reading jumped across: the data place the
+    step, and a fit may not move it to where it would stand for some other misfit of the
+    model. It acts on the final reading, after
+    every other output effect (:attr:`Effect.reads_output`), so that :math:`L` is a
+    measured value.
+    """
+
+    target = "output"
+    reads_output = True
+
+    def __init__(
+        self,
+        output: int,
+        level: float,
+        height: float = 0.0,
+        *,
+        level_bounds=(None, None),
+        corner: float = 0.05,
+        fit_corner: bool = False,
+        name: str = "step",
+    ):
+        self.output, self.level, self.height = int(output), float(level), float(height)
+        self.level_bounds = tuple(level_bounds)
+        self.corner, self.fit_corner = _checked_corner(corner), bool(fit_corner)
+        self.name = name
+
+    def parameters(self) -> dict[str, Parameter]:
+        return {
+            f"{self.name}_level": Parameter(self.level, self.level_bounds),
+            f"{self.name}_height": Parameter(self.height),
+            **_corner_parameters(self),
+        }
+
+    @property
+    def mechanism(self) -> str:
+        """A step in the reading of the output."""
+        return f"step in output {self.output}"
+
+    def apply_output(self, x, u, z, theta):
+        reading = z[self.output]
+        above = jax.nn.sigmoid((reading - theta[f"{self.name}_level"]) / _hinge_corner(self, theta))
+        return z.at[self.output].add(theta[f"{self.name}_height"] * above)
+
+    def describe(self, state_names, output_names, values=None) -> str:
+        values = values or {}
+        level = values.get(f"{self.name}_level", self.level)
+        height = values.get(f"{self.name}_height", self.height)
+        return (
+            f"the reading of {output_names[self.output]} steps by {height:.3g} where it "
+            f"passes {level:.4g} (a discontinuous sensor)"
         )
 
 
@@ -919,6 +995,10 @@ class Switched(Effect):
         self.effect, self.name, self.target = effect, effect.name, effect.target
 
     @property
+    def reads_output(self) -> bool:
+        return self.effect.reads_output
+
+    @property
     def switch(self) -> str:
         """Name of the switch parameter."""
         return f"{self.name}_on"
@@ -1117,7 +1197,8 @@ def augment(physics: PhysicsModel, *effects: Effect) -> PhysicsModel:
         The declared model; it is not modified.
     *effects : Effect
         Effects applied in order after the declared step (state effects) and output map
-        (output effects); for a physics built with :meth:`PhysicsModel.from_ode`, input
+        (output effects; those that act on the final reading, :attr:`Effect.reads_output`,
+        after the others); for a physics built with :meth:`PhysicsModel.from_ode`, input
         effects and :class:`AdditiveEffect` terms act inside the integrated right-hand
         side instead. Effects with memory (:class:`Backlash`) act first, on the input,
         through hidden states of their own. Their parameters are appended to the model's,
@@ -1137,7 +1218,8 @@ def augment(physics: PhysicsModel, *effects: Effect) -> PhysicsModel:
     declared = getattr(physics, "declared", (physics.step, physics.output))
     everything = tuple(getattr(physics, "effects", ())) + tuple(effects)
     states = tuple(e for e in everything if e.target in ("input", "state"))
-    outputs = tuple(e for e in everything if e.target == "output")
+    outputs = tuple(e for e in everything if e.target == "output" and not e.reads_output)
+    outputs += tuple(e for e in everything if e.target == "output" and e.reads_output)
     model = PhysicsModel.__new__(PhysicsModel)
     model.__dict__.update(physics.__dict__)
     model.declared = declared

@@ -20,7 +20,12 @@ from sk_offwhite.datasets._mechanical import (
     make_duffing_oscillator,
     make_pendulum_drag,
 )
-from sk_offwhite.datasets._sensor import make_nonlinear_sensor_tank, sensor_reading
+from sk_offwhite.datasets._sensor import (
+    make_nonlinear_sensor_tank,
+    make_stepped_sensor_tank,
+    sensor_reading,
+    stepped_reading,
+)
 from sk_offwhite.datasets._synthetic import (
     make_cascaded_tanks,
     make_friction_oscillator,
@@ -48,10 +53,12 @@ __all__ = [
     "make_nonlinear_sensor_tank",
     "make_pendulum_drag",
     "make_saturating_actuator",
+    "make_stepped_sensor_tank",
     "make_vehicle_lateral",
     "play",
     "safe_sqrt",
     "sensor_reading",
+    "stepped_reading",
     "vehicle_dictionary_library",
     "vehicle_physics_known_registers",
 ]

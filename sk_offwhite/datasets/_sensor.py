@@ -1,4 +1,5 @@
-"""A tank whose level sensor is not linear: the missing effect is in the output map."""
+"""Tanks whose level sensor is not what the physics says: the missing effect is in the
+output map (a curved characteristic, a step in the reading)."""
 
 from __future__ import annotations
 
@@ -19,11 +20,17 @@ from sk_offwhite.datasets._synthetic import POSITIVE, tank_rhs
 
 SENSOR_THETA = {"k": 0.5, "b": 0.5}
 SENSOR_CURVATURE, SENSOR_DT, SENSOR_X0 = 0.04, 1.0, 4.0
+STEP_LEVEL, STEP_HEIGHT = 5.0, 0.4
 
 
 def sensor_reading(level, curvature: float = SENSOR_CURVATURE):
     """What the sensor reads at ``level``: :math:`x + q x^2`."""
     return level + curvature * level**2
+
+
+def stepped_reading(level, step_level: float = STEP_LEVEL, step_height: float = STEP_HEIGHT):
+    r"""What a sensor with a seam reads at ``level``: :math:`x + H\,[x > L]`."""
+    return level + step_height * (np.asarray(level) > step_level)
 
 
 def _sensor_tank_physics(k: float, x0: float) -> PhysicsModel:
@@ -48,12 +55,12 @@ def _sensor_tank_physics(k: float, x0: float) -> PhysicsModel:
     )
 
 
-def _sensor_record(rng, n: int, physics: PhysicsModel, stds) -> tuple:
+def _sensor_record(rng, n: int, physics: PhysicsModel, stds, reading=sensor_reading) -> tuple:
     u = np.clip(2.0 + 0.6 * _multisine(rng, n, 0.02), 0.0, None)[:, None]
     w = _gaussian(rng, (n - 1, 1), stds[1])
     x = _rollout(physics, SENSOR_THETA, np.array([SENSOR_X0]), u, None, w)
     e = _gaussian(rng, (n, 1), stds[0])
-    return (u, x, sensor_reading(x) + e), (e, w)
+    return (u, x, reading(x) + e), (e, w)
 
 
 def make_nonlinear_sensor_tank(
@@ -122,5 +129,78 @@ def make_nonlinear_sensor_tank(
         noise,
         "Tank x' = -k sqrt(x) + b u, k=0.5, b=0.5 (known), Euler dt=1 s; the level sensor "
         "reads z = x + 0.04 x^2; the physics reads z = x.\n",
+        sampling_time=SENSOR_DT,
+    )
+
+
+def make_stepped_sensor_tank(
+    n_samples: int = 1000,
+    noise_std: float = 0.02,
+    random_state=None,
+    *,
+    process_noise_std: float = 0.0,
+) -> Bunch:
+    """Single tank read by a level sensor whose reading steps where the level passes a value.
+
+    True system, one explicit-Euler step of :math:`\\Delta t = 1` s per sample:
+
+    .. math::
+
+        \\dot x = -k \\sqrt{x} + b u, \\qquad z = x + H\\,[x > L] + \\eta,
+
+    with :math:`k = 0.5`, :math:`b = 0.5` (the pump gain, known: fixed in the declared
+    physics), :math:`L = 5`, :math:`H = 0.4` and :math:`x(0) = 4`: a seam in the sensor
+    (a capacitive strip in two pieces) makes the reading jump by :math:`H` each time the
+    level passes :math:`L`, up as it rises and down as it falls. The physics reads the level
+    as it is (:math:`z = x`); the missing effect is static, discontinuous and in the output
+    map. ``hidden_effect["rates"]`` is ``{"step_level": L, "step_height": H}``;
+    :func:`stepped_reading` is the true characteristic. Input: pump flow, multisine
+    0-0.02 cycles/sample, mean 2, std 0.6, clipped at 0 (levels about 0-12).
+    Suggested library: polynomials of degree 2 on ``[x, u]``.
+
+    Parameters
+    ----------
+    n_samples : int, default=1000
+        Length of each record.
+    noise_std : float, default=0.02
+        Standard deviation of the Gaussian sensor noise.
+    random_state : int, RandomState instance or None, default=None
+        Seed of the input and noise realisations.
+    process_noise_std : float, default=0.0
+        Standard deviation of a Gaussian disturbance added to the level update.
+
+    Returns
+    -------
+    data : sklearn.utils.Bunch
+        ``u, z, u_val, z_val, x, x_val, physics, true_parameters, true_x0, true_x0_val,
+        hidden_effect, suggested_library, noise, sampling_time, DESCR``.
+    """
+    import pysindy as ps
+
+    n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
+    rng = check_random_state(random_state)
+    truth = _sensor_tank_physics(SENSOR_THETA["k"], SENSOR_X0)
+    records = [_sensor_record(rng, n, truth, stds, stepped_reading) for _ in range(2)]
+    (est, est_noise), (val, val_noise) = records
+    hidden = {
+        "target": "output",
+        "equation": None,
+        "variables": ["x"],
+        "sign": 1,
+        "description": "The level sensor reads x + H [x > L] instead of x.",
+        "rates": {"step_level": STEP_LEVEL, "step_height": STEP_HEIGHT},
+    }
+    noise = _gaussian_noise(stds, (est_noise, val_noise), "level equation")
+    x0 = np.array([SENSOR_X0])
+    return _bunch(
+        _sensor_tank_physics(0.4, float(est[2][0, 0])),
+        (est, val),
+        SENSOR_THETA,
+        (x0, x0),
+        hidden,
+        ps.PolynomialLibrary(degree=2),
+        noise,
+        "Tank x' = -k sqrt(x) + b u, k=0.5, b=0.5 (known), Euler dt=1 s; the level sensor "
+        "reads z = x + 0.4 [x > 5]; the physics reads z = x.\n",
         sampling_time=SENSOR_DT,
     )

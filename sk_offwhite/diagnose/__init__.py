@@ -9,6 +9,8 @@ the simulated states ``x_sim``, with the residual ``z - z_sim``:
 - :func:`residual_regions`: in which range of a state or input does it concentrate, with
   which sign?
 - :func:`range_violations`: measured ceilings/floors (saturations?) the model crosses;
+- :func:`output_jumps`: one-sample jumps of a measured output, repeated at one level, that
+  the model does not make (a discontinuous sensor?);
 - :func:`analyse_residuals`: all of the above as a :class:`ResidualReport` with
   ``summary()`` and ``to_dict()``.
 
@@ -21,6 +23,7 @@ from ._correlation import (
     cross_correlation_test,
     whiteness_test,
 )
+from ._jumps import OutputJump, output_jumps
 from ._metrics import simulation_metrics
 from ._ranges import RangeViolation, range_violations
 from ._regions import ResidualRegion, residual_regions
@@ -28,12 +31,14 @@ from ._report import ResidualReport, analyse_residuals
 
 __all__ = [
     "CrossCorrelationResult",
+    "OutputJump",
     "RangeViolation",
     "ResidualRegion",
     "ResidualReport",
     "WhitenessResult",
     "analyse_residuals",
     "cross_correlation_test",
+    "output_jumps",
     "range_violations",
     "residual_regions",
     "simulation_metrics",

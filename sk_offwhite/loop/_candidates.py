@@ -16,7 +16,10 @@ only where they make physical sense for the variables' kinds
 * inputs that are positions or angles: play in the transmission
   (:class:`~sk_offwhite.Backlash`, an effect with a hidden state);
 * measured states: a sensor offset and a sensor calibration (offset, gain, curvature:
-  :class:`~sk_offwhite.SensorCalibration`); measured ceilings: an output saturation.
+  :class:`~sk_offwhite.SensorCalibration`); measured ceilings: an output saturation;
+  repeated one-sample jumps of a measured output at one level
+  (:func:`~sk_offwhite.diagnose.output_jumps`): a step in its reading
+  (:class:`~sk_offwhite.SensorStep`).
 
 The strongest dictionary terms are also proposed as they are
 (:class:`~sk_offwhite.DictionaryTerm`, when ``library`` is given): that is how an effect
@@ -50,6 +53,7 @@ from .._effects import (
     Overflow,
     QuadraticDrag,
     SensorCalibration,
+    SensorStep,
     Stiffness,
 )
 from .._kinds import ACTUATOR_KINDS, LEVEL_KINDS, POSITION_KINDS, VELOCITY_KINDS, Kinds
@@ -349,6 +353,26 @@ def _ceilings(range_facts, output_names, measured, names, states, outputs) -> li
     return out
 
 
+def _steps(jumps, output_names, outputs) -> list[Candidate]:
+    """A step in the reading of each output that jumps repeatedly at one level, started
+    at the jumps' height and at their level less half of it (the step's level is that of
+    the reading below it), kept within the values the reading jumped across (widened by
+    the height), rounded over a corner in the output's scale."""
+    out = []
+    for fact in jumps:
+        if fact.output not in output_names:
+            continue
+        o = output_names.index(fact.output)
+        corner = {} if outputs is None else _corner(outputs[:, o])
+        level, margin = fact.level - fact.height / 2.0, abs(fact.height)
+        bounds, name = (fact.low - margin, fact.high + margin), f"step_{fact.output}"
+        step = SensorStep(
+            o, level, fact.height, level_bounds=bounds, name=name, fit_corner=True, **corner
+        )
+        out.append(Candidate(step, fact.sentence))
+    return out
+
+
 def _level_effects(hypothesis, states, names, kinds: Kinds) -> list[Candidate]:
     """Overflows and leaks, for levels and one-signed generic states."""
     i = hypothesis.equation_index
@@ -405,6 +429,7 @@ def propose_effects(
     kinds: Kinds | None = None,
     dt: float = 1.0,
     outputs=None,
+    jumps=(),
 ) -> list[Candidate]:
     """Candidate effects (list of :class:`Candidate`), one per effect name, by evidence.
 
@@ -430,8 +455,11 @@ def propose_effects(
         Time unit of the effects' rates (:func:`~sk_offwhite._effects.time_step`).
     outputs : ndarray of shape (n_samples, n_outputs), default=None
         Simulated outputs of the fitted baseline: an output saturation's corner is 2.5 %
-        of their standard deviation (overflows take theirs from ``states``); ``None``
-        keeps the effect's default corner.
+        of their standard deviation (overflows take theirs from ``states``), and so is a
+        sensor step's; ``None`` keeps the effect's default corner.
+    jumps : sequence of OutputJump, default=()
+        From :func:`~sk_offwhite.diagnose.output_jumps`: a step in the reading of each
+        output that jumps.
     """
     names, output_names = tuple(state_names), list(output_names)
     states = np.asarray(states, float)
@@ -456,6 +484,7 @@ def propose_effects(
         proposals += _calibrations(states, list(measured), output_names)
     outputs = None if outputs is None else np.asarray(outputs, float)
     proposals += _ceilings(range_facts, output_names, measured, names, states, outputs)
+    proposals += _steps(jumps, output_names, outputs)
     proposals += _spills(states, names, kinds)
     if u_arr is not None:
         proposals += _drives(u_arr, states, tuple(input_names), names, kinds)

@@ -63,7 +63,7 @@ from .._physics import Parameter, measured_states
 from .._radial import RadialBasis
 from .._validation import check_record
 from ..certify import identifiability
-from ..diagnose import analyse_residuals, range_violations
+from ..diagnose import OutputJump, RangeViolation, analyse_residuals, output_jumps, range_violations
 from ._candidates import Candidate, promoted_terms, propose_effects, unique_by_name
 from ._hypotheses import evidence_hypotheses, form_hypotheses
 from ._progress import StageClock, logger
@@ -188,9 +188,13 @@ class LoopResult:
     each candidate fitted alone; ``gamma_path`` and ``final_gamma_path`` the support paths
     (:class:`~sk_offwhite.GammaPath`, ``None`` for a single γ) of the two fits with δ
     (``with_delta`` and ``final_with_delta`` are ``None`` without ``fit_delta`` or when
-    they failed). ``evidence`` is the physics-only fit with the dictionary the hypotheses
-    come from; ``final_with_output_delta`` the augmented physics with a sparse correction
-    of its output map and ``output_gamma_path`` its path (``None`` without
+    they failed). ``range_facts`` holds what the declared physics' simulation says of the
+    measured outputs: their ceilings and floors
+    (:class:`~sk_offwhite.diagnose.RangeViolation`) and their repeated one-sample jumps
+    (:class:`~sk_offwhite.diagnose.OutputJump`). ``evidence`` is the physics-only fit
+    with the dictionary the hypotheses come from; ``final_with_output_delta`` the
+    augmented physics with a sparse correction of its output map and
+    ``output_gamma_path`` its path (``None`` without
     ``fit_output_delta``, when the outputs do not read states, or when it failed);
     ``cv_errors`` maps each fitted model's key (``"baseline"``, ``"with_delta"``,
     ``"final"``, ``"final_with_delta"``, ``"final_with_output_delta"``) to its
@@ -773,7 +777,9 @@ def _select_effects(
     chosen, warm, _ = steps[k - 1]
     chosen, warm, rows = _swap(board, ranked, (chosen, warm, trail[k][1]), u, z, settings,
                                failures, fits)  # fmt: skip
-    return board.ordered(chosen), trail + rows, singles, warm, fits
+    rescored = {label for label, _ in rows}
+    trail = [row for row in trail if row[0] not in rescored] + rows
+    return board.ordered(chosen), trail, singles, warm, fits
 
 
 def _swap(board, ranked, chosen, u, z, settings, failures, fits):
@@ -803,17 +809,17 @@ def _swap(board, ranked, chosen, u, z, settings, failures, fits):
         return effects, warm, []
     rows, best = [], (effects, warm, (1.0 - settings.min_gain) * cv)
     lighter = (effects, warm, (1.0 + settings.tolerance) * cv)
-    moves = [  # those cross-validated already were not better by min_gain
+    moves = [
         move
         for move in _moves(effects, warm, ranked, base[0], lighter[2], settings)
-        if _label(board.ordered(move[0])) not in fits
+        if _worth_fitting(move[0], effects, base[0], fits, board, u, z)
     ]
     fitted = _best_of(board, [(trial, starts) for trial, starts, _ in moves], u, z, settings,
                       failures)  # fmt: skip
     passed = [
         (trial, fit[1], None)
         for (trial, _, bar), fit in zip(moves, fitted, strict=True)
-        if fit is not None and fit[0] < bar
+        if fit is not None and fit[0] < min(bar, _earlier_rmse(fits, board, trial, u, z))
     ]
     for (trial, params, _), (label, score, fit) in zip(
         passed, _sets_cv(board, passed, u, z, settings, failures), strict=True
@@ -826,6 +832,27 @@ def _swap(board, ranked, chosen, u, z, settings, failures, fits):
             lighter = (trial, params, score)
     chosen = best if best[0] is not effects else lighter
     return chosen[0], chosen[1], rows
+
+
+def _earlier_rmse(fits, board, effects, u, z) -> float:
+    """Estimation RMSE of the earlier fit of ``effects`` that was cross-validated (``inf``
+    when none was, or when it failed)."""
+    earlier = fits.get(_label(board.ordered(effects)))
+    return np.inf if earlier is None else _rmse(earlier.predict(u), z)
+
+
+def _worth_fitting(trial, effects, rmse, fits, board, u, z) -> bool:
+    """Whether a move of the refinement from ``effects`` (estimation RMSE ``rmse``) to
+    ``trial`` is fitted: a set not cross-validated yet, or an addition whose earlier fit
+    missed the record by more than ``effects`` does. A set holding ``effects`` can fit
+    the record at least as well as they do; when its fit did not, that fit ended in a poor
+    minimum, and the set is fitted again from the chosen set's parameters (and scored
+    again if it then fits the record better than before). Measured on the Cascaded Tanks:
+    a sensor step added to two overflows before the calibration, CV 2.66; added to the
+    three effects, 0.109. The order the sets were reached in must not decide which of
+    their fits is judged."""
+    earlier = _earlier_rmse(fits, board, trial, u, z)
+    return earlier == np.inf or (len(trial) > len(effects) and earlier > rmse)
 
 
 def _moves(effects, warm, ranked, rmse, lighter, settings):
@@ -901,7 +928,7 @@ def _candidates(physics, library, hypotheses, facts, run, u, settings):
     names = list(physics.state_names) + list(physics.input_names)
     found = propose_effects(
         hypotheses,
-        facts,
+        [fact for fact in facts if isinstance(fact, RangeViolation)],
         physics.state_names,
         _output_names(physics, run.outputs.shape[1]),
         run.states,
@@ -911,6 +938,7 @@ def _candidates(physics, library, hypotheses, facts, run, u, settings):
         kinds=physical_kinds(physics),
         dt=dt,
         outputs=run.outputs,
+        jumps=[fact for fact in facts if isinstance(fact, OutputJump)],
     )
     declared = [
         Candidate(law, f"{law.parameter} is declared relaxable (fixed at {law.value:g})")
@@ -1081,7 +1109,9 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
     with _stage(clock, "declared physics", settings):
         baseline, start, run, declared_cv, reset = _fit_declared(physics, u, z, settings)
         notes += _reset_notes(reset, physics)
-        facts = range_violations(z, run.outputs, _output_names(physics, z.shape[1]))
+        output_names = _output_names(physics, z.shape[1])
+        facts = range_violations(z, run.outputs, output_names)
+        facts += output_jumps(z, run.outputs, output_names)
     with _stage(clock, "evidence", settings):
         evidence, hypotheses = _read_evidence(start, library, u, z, settings, failures)
         snapshot = copy.copy(evidence)  # the physics-only fit, kept when the path refits it
