@@ -103,34 +103,15 @@ def make_nonlinear_sensor_tank(
         ``u, z, u_val, z_val, x, x_val, physics, true_parameters, true_x0, true_x0_val,
         hidden_effect, suggested_library, noise, sampling_time, DESCR``.
     """
-    import pysindy as ps
-
-    n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
-    rng = check_random_state(random_state)
-    truth = _sensor_tank_physics(SENSOR_THETA["k"], SENSOR_X0)
-    (est, est_noise), (val, val_noise) = (_sensor_record(rng, n, truth, stds) for _ in range(2))
     hidden = {
-        "target": "output",
-        "equation": None,
-        "variables": ["x"],
-        "sign": 1,
         "description": "The level sensor reads x + q x^2 instead of x.",
         "rates": {"curvature": SENSOR_CURVATURE},
     }
-    noise = _gaussian_noise(stds, (est_noise, val_noise), "level equation")
-    x0 = np.array([SENSOR_X0])
-    return _bunch(
-        _sensor_tank_physics(0.4, float(est[2][0, 0])),
-        (est, val),
-        SENSOR_THETA,
-        (x0, x0),
-        hidden,
-        ps.PolynomialLibrary(degree=2),
-        noise,
-        "Tank x' = -k sqrt(x) + b u, k=0.5, b=0.5 (known), Euler dt=1 s; the level sensor "
+    n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
+    return _sensor_tank_data(
+        n, stds, check_random_state(random_state), sensor_reading, hidden,
         "reads z = x + 0.04 x^2; the physics reads z = x.\n",
-        sampling_time=SENSOR_DT,
-    )
+    )  # fmt: skip
 
 
 def make_stepped_sensor_tank(
@@ -175,21 +156,26 @@ def make_stepped_sensor_tank(
         ``u, z, u_val, z_val, x, x_val, physics, true_parameters, true_x0, true_x0_val,
         hidden_effect, suggested_library, noise, sampling_time, DESCR``.
     """
-    import pysindy as ps
-
-    n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
-    rng = check_random_state(random_state)
-    truth = _sensor_tank_physics(SENSOR_THETA["k"], SENSOR_X0)
-    records = [_sensor_record(rng, n, truth, stds, stepped_reading) for _ in range(2)]
-    (est, est_noise), (val, val_noise) = records
     hidden = {
-        "target": "output",
-        "equation": None,
-        "variables": ["x"],
-        "sign": 1,
         "description": "The level sensor reads x + H [x > L] instead of x.",
         "rates": {"step_level": STEP_LEVEL, "step_height": STEP_HEIGHT},
     }
+    n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
+    return _sensor_tank_data(
+        n, stds, check_random_state(random_state), stepped_reading, hidden,
+        "reads z = x + 0.4 [x > 5]; the physics reads z = x.\n",
+    )  # fmt: skip
+
+
+def _sensor_tank_data(n: int, stds, rng, reading, hidden: dict, read_as: str) -> Bunch:
+    """The records and Bunch of a sensor tank whose sensor reads ``reading(x)``; ``hidden``
+    holds the description and rates of the hidden effect, ``read_as`` ends the DESCR."""
+    import pysindy as ps
+
+    truth = _sensor_tank_physics(SENSOR_THETA["k"], SENSOR_X0)
+    records = [_sensor_record(rng, n, truth, stds, reading) for _ in range(2)]
+    (est, est_noise), (val, val_noise) = records
+    hidden = {"target": "output", "equation": None, "variables": ["x"], "sign": 1, **hidden}
     noise = _gaussian_noise(stds, (est_noise, val_noise), "level equation")
     x0 = np.array([SENSOR_X0])
     return _bunch(
@@ -201,6 +187,6 @@ def make_stepped_sensor_tank(
         ps.PolynomialLibrary(degree=2),
         noise,
         "Tank x' = -k sqrt(x) + b u, k=0.5, b=0.5 (known), Euler dt=1 s; the level sensor "
-        "reads z = x + 0.4 [x > 5]; the physics reads z = x.\n",
+        + read_as,
         sampling_time=SENSOR_DT,
     )
