@@ -81,7 +81,7 @@ def main(argv=None) -> list[dict]:
     enable_compilation_cache()
     warnings.simplefilter("ignore")
     data = load_cascaded_tanks()
-    settings = LoopSettings(n_jobs=args.n_jobs)
+    settings = LoopSettings(n_jobs=args.n_jobs, max_effects=4)  # as the main job
     physics = cascaded_tanks_physics(fixed={"k4": 0.05})
     library = ps.PolynomialLibrary(degree=2, include_bias=True)
     result = close_the_loop(physics, library, data.u_est, data.z_est, settings=settings)

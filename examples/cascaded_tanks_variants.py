@@ -218,7 +218,7 @@ def main(argv=None) -> list[dict]:
     warnings.simplefilter("ignore")
     data = load_cascaded_tanks()
     declared = relaxable_tanks_physics()
-    settings = LoopSettings(n_jobs=args.n_jobs)
+    settings = LoopSettings(n_jobs=args.n_jobs, max_effects=4)  # as the main job
     library = ps.PolynomialLibrary(degree=2, include_bias=True)
     physics = cascaded_tanks_physics(fixed={"k4": 0.05})
     result = close_the_loop(physics, library, data.u_est, data.z_est, settings=settings)
