@@ -809,17 +809,17 @@ def _swap(board, ranked, chosen, u, z, settings, failures, fits):
         return effects, warm, []
     rows, best = [], (effects, warm, (1.0 - settings.min_gain) * cv)
     lighter = (effects, warm, (1.0 + settings.tolerance) * cv)
-    moves = [
-        move
-        for move in _moves(effects, warm, ranked, base[0], lighter[2], settings)
-        if _worth_fitting(move[0], effects, base[0], fits, board, u, z)
-    ]
+    moves = []  # each to beat its bar and the earlier fit of its set, if any
+    for trial, starts, bar in _moves(effects, warm, ranked, base[0], lighter[2], settings):
+        earlier = _earlier_rmse(fits, board, trial, u, z)
+        if _worth_fitting(trial, effects, base[0], earlier):
+            moves.append((trial, starts, min(bar, earlier)))
     fitted = _best_of(board, [(trial, starts) for trial, starts, _ in moves], u, z, settings,
                       failures)  # fmt: skip
     passed = [
         (trial, fit[1], None)
         for (trial, _, bar), fit in zip(moves, fitted, strict=True)
-        if fit is not None and fit[0] < min(bar, _earlier_rmse(fits, board, trial, u, z))
+        if fit is not None and fit[0] < bar
     ]
     for (trial, params, _), (label, score, fit) in zip(
         passed, _sets_cv(board, passed, u, z, settings, failures), strict=True
@@ -841,17 +841,17 @@ def _earlier_rmse(fits, board, effects, u, z) -> float:
     return np.inf if earlier is None else _rmse(earlier.predict(u), z)
 
 
-def _worth_fitting(trial, effects, rmse, fits, board, u, z) -> bool:
+def _worth_fitting(trial, effects, rmse: float, earlier: float) -> bool:
     """Whether a move of the refinement from ``effects`` (estimation RMSE ``rmse``) to
-    ``trial`` is fitted: a set not cross-validated yet, or an addition whose earlier fit
-    missed the record by more than ``effects`` does. A set holding ``effects`` can fit
+    ``trial`` is fitted, given the estimation RMSE ``earlier`` of the set's earlier fit
+    (:func:`_earlier_rmse`): a set not cross-validated yet, or an addition whose earlier
+    fit missed the record by more than ``effects`` does. A set holding ``effects`` can fit
     the record at least as well as they do; when its fit did not, that fit ended in a poor
     minimum, and the set is fitted again from the chosen set's parameters (and scored
     again if it then fits the record better than before). Measured on the Cascaded Tanks
     with an earlier form of the sensor step: added to two overflows before the
     calibration, CV 2.66; added to the three effects, 0.115. The order the sets were
     reached in must not decide which of their fits is judged."""
-    earlier = _earlier_rmse(fits, board, trial, u, z)
     return earlier == np.inf or (len(trial) > len(effects) and earlier > rmse)
 
 
