@@ -1,9 +1,11 @@
 """What else the Cascaded Tanks model could have been: variants of the loop's final model.
 
 Runs the README's closed loop (the same settings as ``cascaded_tanks_loop.py``), then refits
-variants of the structure it chose (the declared physics with its three effects), each
+variants of the structure it chose (the declared physics with its effects), each
 started from the chosen fit, and scores every variant as the loop scores an effect set:
-the RMSE of the 3-fold cross-validation on the estimation record (the loop's choice),
+the RMSE of the 3-fold cross-validation on the estimation record (the loop's choice;
+a parameter held on each direction of the fit the data do not determine, as on the
+loop's final model),
 next to the estimation RMSE and, only reported, the validation RMSE under both protocols.
 
 Variants:
@@ -20,6 +22,12 @@ Variants:
   Euler sub-steps, one RK4 step): is the discretisation part of what the model misses?
 * the overflows' corners fitted (``Overflow(..., fit_corner=True)``) instead of fixed at
   2.5 % of each level's spread;
+* a dead zone of the pump (:class:`~sk_offwhite.DeadZone`: no flow below a voltage, as a
+  pump that must lift the water to the upper tank's inlet), its width started at 2 % of
+  the voltage's RMS (next to the model without it) and at 25 % (where the loop's
+  candidate starts), alone and with the overflows' corners fitted;
+* a term in ``x2`` in the upper tank's equation (the pump lifting from a reservoir that
+  the lower tank's water is taken from), alone and with the dead zone;
 * multiple starts of the effects' levels and fraction (``--starts``): does the fit end in
   the best optimum the estimation record has?
 
@@ -41,6 +49,8 @@ import numpy as np
 import pysindy as ps
 
 from sk_offwhite import (
+    DeadZone,
+    DictionaryTerm,
     GreyBoxSparseRegressor,
     Overflow,
     Parameter,
@@ -56,6 +66,7 @@ from sk_offwhite.loop import (
     close_the_loop,
     cross_validated_rmse,
     fit_continued,
+    hold_undetermined_directions,
     warm_physics,
 )
 
@@ -148,20 +159,28 @@ def held_out_scores(physics, u, z, settings: LoopSettings, folds, tail: bool) ->
 
 
 def score(label, physics, fitted, data, settings, folds=(3,), tail=False, delay=0) -> dict:
-    """Refit ``physics`` from ``fitted`` and score it (held-out scores, estimation,
-    validation)."""
+    """Refit ``physics`` from ``fitted``, hold a parameter on each direction of the fit the
+    data do not determine, as the loop does on its final model
+    (:func:`~sk_offwhite.loop.hold_undetermined_directions`; ``held``: their names), and
+    score it (held-out scores, estimation, validation)."""
     u_est, u_val = delayed(data.u_est, delay), delayed(data.u_val, delay)
     template = estimator(started_from(physics, fitted), settings)
     est = fit_continued(template, u_est, data.z_est, settings.horizon)
-    scores = held_out_scores(warm_physics(physics, est), u_est, data.z_est, settings, folds, tail)
-    row = dict(variant=label, held_out=scores)
+    held, est, _, _ = hold_undetermined_directions(
+        physics, est, u_est, data.z_est, settings=settings
+    )
+    scores = held_out_scores(warm_physics(held, est), u_est, data.z_est, settings, folds, tail)
+    was_free = {n for n, spec in physics.parameters.items() if not spec.fixed}
+    fixed = [n for n in was_free if held.parameters[n].fixed]
+    row = dict(variant=label, held_out=scores, held=fixed)
     row.update(estimation=rmse(est, u_est, data.z_est), original=rmse(est, u_val, data.z_val))
     row.update(init_window=rmse(est, u_val, data.z_val, 50), parameters=est.parameters_)
     return row
 
 
-def variants(result, declared):
-    """``(label, physics, delay)`` of each variant of the chosen structure."""
+def variants(result, declared, voltage_rms: float):
+    """``(label, physics, delay)`` of each variant of the chosen structure
+    (``voltage_rms``: the RMS of the estimation record's pump voltage)."""
     laws = {name: RelaxedLaw(name, spec.value, spec.bounds)
             for name, spec in declared.parameters.items() if spec.relaxable}  # fmt: skip
     effects = list(result.effects)
@@ -187,6 +206,29 @@ def variants(result, declared):
         yield f"the ODE integrated by {label}", augment(integrated, *effects), 0
     sharp = [e.replace(fit_corner=True) if isinstance(e, Overflow) else e for e in effects]
     yield "overflows' corners fitted", augment(declared, *sharp), 0
+    yield from _pump_and_reservoir(declared, effects, sharp, voltage_rms)
+
+
+def _pump_and_reservoir(declared, effects, sharp, voltage_rms: float):
+    """The variants with a dead zone of the pump (its width started at 2 % and 25 % of
+    the voltage's RMS) and with a term in ``x2`` in the upper tank's equation."""
+
+    def dead_zone(share):
+        return DeadZone(0, share * voltage_rms, name="dead_zone_u")
+
+    linear = ps.PolynomialLibrary(degree=1, include_bias=False)
+    reservoir = DictionaryTerm(0, linear, ("x1", "x2", "u"), 1, name="term_x1_x2")
+    for share in (0.02, 0.25):
+        label = f"+ pump dead zone (from {share:.0%} of the RMS)"
+        yield label, augment(declared, *effects, dead_zone(share)), 0
+    yield (
+        "+ pump dead zone, overflows' corners fitted",
+        augment(declared, *sharp, dead_zone(0.02)),
+        0,
+    )
+    yield "+ x2 in the x1 equation", augment(declared, *effects, reservoir), 0
+    both = augment(declared, *effects, dead_zone(0.02), reservoir)
+    yield "+ pump dead zone and x2 in the x1 equation", both, 0
 
 
 def multiple_starts(result, declared, data, settings) -> list[tuple]:
@@ -228,13 +270,16 @@ def main(argv=None) -> list[dict]:
     print("| variant | " + " | ".join(names) + " | estimation | validation, original "
           "| init_window |", "|---|" + "---|" * (len(keys) + 3), sep="\n")  # fmt: skip
     rows = []
-    for label, model, delay in variants(result, declared):
+    voltage_rms = float(np.sqrt(np.mean(data.u_est**2)))
+    for label, model, delay in variants(result, declared, voltage_rms):
         rows.append(score(label, model, result.final, data, settings, args.folds, args.tail,
                           delay))  # fmt: skip
         r = rows[-1]
         held_out = " | ".join(f"{r['held_out'][k]:.4f}" for k in keys)
         print(f"| {label} | {held_out} | {r['estimation']:.4f} | {r['original']:.4f} "
               f"| {r['init_window']:.4f} |", flush=True)  # fmt: skip
+    for r in rows:
+        print(f"{r['variant']}: held {', '.join(r['held']) or 'nothing'}")
     if args.starts:
         ranked = multiple_starts(result, declared, data, settings)
         best = ranked[0][1]

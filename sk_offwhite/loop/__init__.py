@@ -16,6 +16,7 @@ from ._loop import (
     cross_validated_rmse,
     fit_continued,
     held_out_splits,
+    hold_undetermined_directions,
     warm_physics,
 )
 from ._report import write_report
@@ -35,6 +36,7 @@ __all__ = [
     "form_hypotheses",
     "held_out_rmse",
     "held_out_splits",
+    "hold_undetermined_directions",
     "promoted_terms",
     "propose_effects",
     "rank_terms",

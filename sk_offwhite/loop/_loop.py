@@ -22,12 +22,16 @@ r"""The closed loop: residual -> evidence -> named effect -> refit -> before/aft
    smallest within ``tolerance`` of the best is kept if it beats the declared physics by
    ``min_gain``, then refined stepwise (each other named candidate added or exchanged for
    one of its effects, each of its effects dropped; see :func:`_swap`).
-5. Refit the augmented physics and, with ``fit_delta``, the augmented physics with a
-   sparse :math:`\delta` (:math:`\gamma` chosen by CV on the support path); with
-   ``fit_output_delta`` too, where outputs measure states, the augmented physics with a sparse
-   correction of its output map instead (a static nonlinearity of the sensors: Gaussian
-   bumps of the measured states, :meth:`~sk_offwhite.RadialBasis.from_data`, spread over
-   the augmented physics' simulated range).
+5. Refit the augmented physics; where an added effect leaves its fit a direction the data
+   do not determine (a calibrated level whose scale nothing else fixes), hold one of the
+   effect's parameters on it at its fitted value (:mod:`~sk_offwhite.loop._gauge`), when
+   that leaves the fit and, within ``tolerance``, its CV error as they were. Then, with
+   ``fit_delta``, fit the augmented physics with a sparse :math:`\delta` (:math:`\gamma`
+   chosen by CV on the support path); with ``fit_output_delta`` too, where outputs
+   measure states, the augmented physics with a sparse correction of its output map
+   instead (a static nonlinearity of the sensors: Gaussian bumps of the measured states,
+   :meth:`~sk_offwhite.RadialBasis.from_data`, spread over the augmented physics'
+   simulated range).
 6. **Never worse.** Every final model is cross-validated the same way; ``result.chosen``
    names the CV-best, and a model is never preferred to one with a lower CV error.
 
@@ -65,6 +69,7 @@ from .._validation import check_record
 from ..certify import identifiability
 from ..diagnose import OutputJump, RangeViolation, analyse_residuals, output_jumps, range_violations
 from ._candidates import Candidate, promoted_terms, propose_effects, unique_by_name
+from ._gauge import fit_undetermined_directions, held_note, held_parameters, holding
 from ._hypotheses import evidence_hypotheses, form_hypotheses
 from ._progress import StageClock, logger
 from ._scoring import MODEL_LABELS, held_out_rmse
@@ -76,6 +81,7 @@ __all__ = [
     "close_the_loop",
     "fit_continued",
     "held_out_splits",
+    "hold_undetermined_directions",
     "warm_physics",
 ]
 
@@ -1063,6 +1069,82 @@ def _start_of_later_fits(physics, baseline: GreyBoxSparseRegressor, u, z):
     return start.with_parameters(**{name: physics.parameters[name] for name in reset}), reset
 
 
+HOLD_SLACK = 1e-3
+"""The relative rise of the estimation RMSE a fit with a parameter held on an undetermined
+direction may show (holding it there leaves the fit as it was, up to rounding)."""
+
+
+def _undetermined_directions(est: GreyBoxSparseRegressor, u, z) -> tuple:
+    """The directions of ``est``'s fit the data do not determine
+    (:func:`~sk_offwhite.loop._gauge.undetermined_directions`); none when they cannot be
+    computed."""
+    try:
+        return fit_undetermined_directions(est, u, z)
+    except FIT_ERRORS:
+        return ()
+
+
+def hold_undetermined_directions(
+    physics, est: GreyBoxSparseRegressor, u, z, *, effects=None, settings=None, cv=None,
+    failures=None,
+):  # fmt: skip
+    r"""Hold a parameter on each direction of an augmented physics' fit that the data do
+    not determine.
+
+    Where an added effect leaves a direction along which the relative standard error of
+    the fit is at least :data:`~sk_offwhite.loop._gauge.MAX_RELATIVE_ERROR`, or its
+    Gauss-Newton matrix singular (a calibrated level whose scale
+    nothing else fixes: see :mod:`~sk_offwhite.loop._gauge`), the added effect's parameter
+    that loads most on the direction is fixed at its fitted value, and the physics is
+    refitted from ``est`` as the loop fits an effect set and cross-validated. The fit is
+    kept when its estimation RMSE rose by at most :data:`HOLD_SLACK` and its CV RMSE by at
+    most ``settings.tolerance`` over ``cv`` (a model with fewer free parameters is
+    preferred within it, as a smaller effect set is).
+
+    Parameters
+    ----------
+    physics : PhysicsModel
+        The augmented physics ``est`` was fitted with.
+    est : GreyBoxSparseRegressor
+        Its fit on ``(u, z)``.
+    u, z : ndarray
+        The estimation record.
+    effects : sequence of Effect, default=None
+        The added effects (``physics.effects`` when ``None``): only their parameters are
+        held.
+    settings : LoopSettings, default=None
+        The fits' and the CV's settings (``LoopSettings()`` when ``None``).
+    cv : float, default=None
+        The CV RMSE of ``physics`` as fitted (computed when ``None`` and needed).
+    failures : list, default=None
+        Where a failed refit is recorded (a line), as the loop records its fits'.
+
+    Returns
+    -------
+    physics, est, cv, note
+        The physics with the held parameters fixed, its fit, its CV RMSE and a sentence
+        for the report; the arguments and ``None`` when nothing was held.
+    """
+    settings = settings or LoopSettings()
+    effects = getattr(physics, "effects", ()) if effects is None else effects
+    directions = _undetermined_directions(est, u, z)
+    held = held_parameters(directions, physics, effects, est.parameters_)
+    if not held:
+        return physics, est, cv, None
+    if cv is None:
+        cv = cross_validated_rmse(warm_physics(physics, est), u, z, settings)
+    held_physics = holding(warm_physics(physics, est), held)
+    refit = _attempt([] if failures is None else failures, "undetermined directions held", _fit_set,
+                     _estimator(held_physics, settings), effects, u, z, settings)  # fmt: skip
+    if refit is None:
+        return physics, est, cv, None
+    rmse = (_rmse(est.predict(u), z), _rmse(refit.predict(u), z))
+    held_cv = cross_validated_rmse(warm_physics(held_physics, refit), u, z, settings)
+    if rmse[1] > (1.0 + HOLD_SLACK) * rmse[0] or held_cv > (1.0 + settings.tolerance) * cv:
+        return physics, est, cv, None
+    return held_physics, refit, held_cv, held_note(held, directions, rmse, (cv, held_cv))
+
+
 def _undetermined(est: GreyBoxSparseRegressor, u, z) -> list[str]:
     """Names of the variables of ``est``'s fit with an infinite standard error (on a flat
     direction of the relative Hessian: :func:`~sk_offwhite.certify.identifiability`);
@@ -1138,7 +1220,14 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
             failures, "augmented physics", _fit_set, _estimator(augmented, settings), effects,
             u, z, settings,
         ) or baseline  # fmt: skip
-    fits["final"] = (final, None, dict(trail).get(_label(effects), declared_cv))
+        final_cv = dict(trail).get(_label(effects), declared_cv)
+        if effects and final is not baseline:
+            augmented, final, final_cv, note = hold_undetermined_directions(
+                augmented, final, u, z, effects=effects, settings=settings, cv=final_cv,
+                failures=failures,
+            )  # fmt: skip
+            notes += [note] if note else []
+    fits["final"] = (final, None, final_cv)
     fitted_augmented = warm_physics(augmented, final)
     if settings.fit_delta:
         with _stage(clock, MODEL_LABELS["final_with_delta"], settings):

@@ -1,0 +1,165 @@
+r"""Directions the data do not determine in the augmented physics, and a parameter held on each.
+
+An added effect can leave the augmented physics without a scale: a sensor calibration
+:math:`z = x + c_0 + c_1 \xi + c_2 \xi^2` (:math:`\xi` the centred, scaled level) on a
+level :math:`x` whose dynamics a rescaling :math:`x \to a x` leaves unchanged (the inflow's
+gain times :math:`a`, Torricelli's outflow coefficient times :math:`\sqrt a`, an overflow's
+level times :math:`a`) reads the same output for every :math:`a`, up to what a bound or a
+fixed corner breaks. Along that orbit the fit is flat or nearly so: its standard errors
+describe the orbit, not the measurements, and the cross-validation folds land at different
+points of it.
+
+A direction counts as undetermined when the Gauss-Newton standard error of the relative
+change along it, :math:`\hat\sigma/\sqrt{\mu}` for an eigenpair :math:`(\mu, v)` of
+:math:`D J^\top J D` (:math:`J` the Jacobian of the simulated outputs, :math:`D =
+\operatorname{diag}|p|`, :math:`\hat\sigma^2` the residual variance, as in
+:func:`~sk_offwhite.certify.identifiability`), is at least :data:`MAX_RELATIVE_ERROR`, or
+when :math:`\mu` is below the verdict's tolerance (a singular matrix): the data then leave
+the loaded parameters uncertain by half their values or more, whatever their units.
+
+On each such direction one parameter of an added effect is held at its fitted value (the
+one that loads most, by :data:`MIN_EFFECT_LOADING` at least): the effect made the
+direction, and the declared parameters keep what the physics says of them. A direction
+the declared physics has on its own is left to the user (the identifiability verdict
+reports it), as are initial states.
+"""
+
+from __future__ import annotations
+
+import jax
+import numpy as np
+
+from .._physics import Parameter, PhysicsModel
+from ..certify._ident_problem import local_problem
+from ..certify._identifiability import (
+    direction_loadings,
+    fit_residual_and_jacobian,
+    variable_scales,
+)
+
+__all__ = [
+    "fit_undetermined_directions",
+    "held_note",
+    "held_parameters",
+    "holding",
+    "undetermined_directions",
+]
+
+RTOL = 1e-9
+r"""The relative eigenvalue below which :math:`D J^\top J D` counts as singular (the
+default tolerance of :func:`~sk_offwhite.certify.identifiability`)."""
+
+MAX_RELATIVE_ERROR = 0.5
+"""The standard error of a relative change along a direction (in units of the
+parameters' own values) from which the data count as not determining it. On the Cascaded
+Tanks' four-effect model the scale of ``x2`` has 1.01 and the next direction 0.089."""
+
+MIN_EFFECT_LOADING = 0.1
+"""The loading (in a unit eigenvector of relative changes) from which an added effect's
+parameter counts as being on a direction."""
+
+
+def relative_errors(values, jacobian, residual, rtol: float = RTOL):
+    r"""Eigenvectors of :math:`D J^\top J D` (columns) and the standard error of the
+    relative change along each (``inf`` where the matrix is singular)."""
+    scales = variable_scales(values)
+    scaled = jacobian * scales
+    eigenvalues, eigenvectors = np.linalg.eigh(scaled.T @ scaled)
+    variance = residual @ residual / max(residual.size - scales.size, 1)
+    flat = eigenvalues <= rtol * max(float(eigenvalues[-1]), np.finfo(float).tiny)
+    errors = np.sqrt(variance / np.where(flat, 1.0, eigenvalues))
+    return eigenvectors, np.where(flat, np.inf, errors)
+
+
+def undetermined_directions(
+    names, values, jacobian, residual, max_relative_error: float = MAX_RELATIVE_ERROR
+) -> tuple:
+    r"""The directions of a fit the data do not determine, ``{name: loading}`` each
+    (largest loading first): the eigenvectors of :math:`D J^\top J D` along which the
+    relative standard error (:func:`relative_errors`) reaches ``max_relative_error``.
+    ``names`` and ``values`` are the fit's variables, ``jacobian`` :math:`\partial \hat
+    z/\partial p` (one row per measured value) and ``residual`` :math:`\hat z - z`."""
+    eigenvectors, errors = relative_errors(np.asarray(values, float), jacobian, residual)
+    weak = np.flatnonzero(errors >= max_relative_error)
+    return tuple(direction_loadings(eigenvectors[:, i], names) for i in weak)
+
+
+def fit_undetermined_directions(est, u, z) -> tuple:
+    """:func:`undetermined_directions` of a fitted estimator on its record (its free
+    parameters and initial states; the Jacobian in double precision)."""
+    with jax.enable_x64(True):
+        local = local_problem(est, u, z, None, False)
+        residual, jacobian = fit_residual_and_jacobian(local)
+    return undetermined_directions(local.names, local.values, jacobian, residual)
+
+
+def _held_on(direction: dict[str, float], owned: set[str]) -> str | None:
+    """The added effects' parameter (in ``owned``) of largest loading on ``direction`` when
+    it loads by :data:`MIN_EFFECT_LOADING`, else ``None``."""
+    loads = {name: abs(value) for name, value in direction.items() if name in owned}
+    if not loads or max(loads.values()) < MIN_EFFECT_LOADING:
+        return None
+    return max(loads, key=loads.get)
+
+
+def held_parameters(directions, physics: PhysicsModel, effects, fitted: dict) -> dict:
+    """``{name: fitted value}`` of the parameter held on each undetermined direction.
+
+    Parameters
+    ----------
+    directions : sequence of dict
+        The undetermined directions, ``{name: loading}``
+        (:func:`undetermined_directions`).
+    physics : PhysicsModel
+        The augmented physics that was fitted.
+    effects : sequence of Effect
+        The effects added to it, whose free parameters may be held.
+    fitted : dict
+        The fitted parameter values (``parameters_``).
+
+    Returns
+    -------
+    dict
+        At most one parameter per direction, each held once, in the directions' order;
+        empty when no added effect loads on any direction.
+    """
+    free = {name for name, spec in physics.parameters.items() if not spec.fixed}
+    owned = {name for effect in effects for name in effect.parameters()} & free
+    held: dict[str, float] = {}
+    for direction in directions:
+        name = _held_on(direction, owned - set(held))
+        if name is not None:
+            held[name] = float(fitted[name])
+    return held
+
+
+def holding(physics: PhysicsModel, held: dict) -> PhysicsModel:
+    """``physics`` with the parameters of ``held`` fixed at its values (bounds kept)."""
+    fixed = {
+        name: Parameter(value, physics.parameters[name].bounds, fixed=True)
+        for name, value in held.items()
+    }
+    return physics.with_parameters(**fixed)
+
+
+def held_note(held: dict, directions, rmse: tuple, cv: tuple) -> str:
+    """The report's sentence on the ``held`` parameters: the directions they remove (the
+    other variables that load on the first direction each is on by
+    :data:`MIN_EFFECT_LOADING`), the estimation RMSE before and after (the fit is
+    unchanged) and the CV RMSE before and after (the folds no longer wander along the
+    directions)."""
+    parts = []
+    for name, value in held.items():
+        direction = next(d for d in directions if name in d)
+        loads = {other: abs(load) for other, load in direction.items() if other != name}
+        others = ", ".join(n for n, load in loads.items() if load >= MIN_EFFECT_LOADING)
+        parts.append(f"{name} = {value:.4g} (with {others})")
+    return (
+        "The data do not determine every parameter of the augmented physics' fit (a "
+        "direction along which the relative standard error is at least "
+        f"{MAX_RELATIVE_ERROR:g}, or that they do not determine at all); one added effect's "
+        "parameter is held at its fitted value on each: "
+        + "; ".join(parts)
+        + f". Estimation RMSE {rmse[0]:.4g} -> {rmse[1]:.4g}; CV RMSE {cv[0]:.4g} -> "
+        f"{cv[1]:.4g}."
+    )
