@@ -59,6 +59,16 @@ def test_nothing_is_held_where_no_added_effect_loads_on_the_direction():
     assert held_parameters([direction], physics, [CALIBRATION], fitted) == {}
 
 
+def test_a_direction_of_one_parameter_alone_is_not_a_trade_off_and_nothing_is_held():
+    """A calibration coefficient the data cannot tell from zero: its own uncertainty."""
+    data, physics = _tank(free_gain=True)
+    fitted = {"k": 0.5, "b": 0.4, "sensor_x_c0": 0.1, "sensor_x_c1": 0.2, "sensor_x_c2": 1e-4}
+    alone = {"sensor_x_c2": 0.999, "k": 0.04}
+    assert held_parameters([alone], physics, [CALIBRATION], fitted) == {}
+    traded = {"sensor_x_c2": 0.9, "k": 0.4}
+    assert held_parameters([traded], physics, [CALIBRATION], fitted) == {"sensor_x_c2": 1e-4}
+
+
 def _record(values, gains, noise=0.1, n=100):
     """``(jacobian, residual)`` whose relative Gauss-Newton matrix is ``diag(gains**2)``
     and whose residual variance is ``noise**2``: relative standard errors

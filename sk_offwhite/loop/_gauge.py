@@ -17,11 +17,13 @@ change along it, :math:`\hat\sigma/\sqrt{\mu}` for an eigenpair :math:`(\mu, v)`
 when :math:`\mu` is below the verdict's tolerance (a singular matrix): the data then leave
 the loaded parameters uncertain by half their values or more, whatever their units.
 
-On each such direction one parameter of an added effect is held at its fitted value (the
-one that loads most, by :data:`MIN_EFFECT_LOADING` at least): the effect made the
-direction, and the declared parameters keep what the physics says of them. A direction
-the declared physics has on its own is left to the user (the identifiability verdict
-reports it), as are initial states.
+On each such direction along which at least two variables trade off (each loading by
+:data:`MIN_EFFECT_LOADING`), one parameter of an added effect is held at its fitted value
+(the one that loads most): the effect made the direction, and the declared parameters keep
+what the physics says of them. A direction the declared physics has on its own is left to
+the user (the identifiability verdict reports it), as are initial states; so is a
+direction of one parameter alone, the uncertainty of an effect's own size (a parameter
+the data cannot tell from zero), which the effect set's cross-validation has judged.
 """
 
 from __future__ import annotations
@@ -95,9 +97,13 @@ def fit_undetermined_directions(est, u, z) -> tuple:
 
 def _held_on(direction: dict[str, float], owned: set[str]) -> str | None:
     """The added effects' parameter (in ``owned``) of largest loading on ``direction`` when
-    it loads by :data:`MIN_EFFECT_LOADING`, else ``None``."""
-    loads = {name: abs(value) for name, value in direction.items() if name in owned}
-    if not loads or max(loads.values()) < MIN_EFFECT_LOADING:
+    it loads by :data:`MIN_EFFECT_LOADING` and another variable does too, else ``None``:
+    a direction of one parameter alone is the uncertainty of its own size (an effect the
+    data cannot tell from zero), which the effect set's CV has judged, not a trade-off
+    between parameters."""
+    traded = [name for name, value in direction.items() if abs(value) >= MIN_EFFECT_LOADING]
+    loads = {name: abs(direction[name]) for name in traded if name in owned}
+    if len(traded) < 2 or not loads:
         return None
     return max(loads, key=loads.get)
 

@@ -1093,13 +1093,13 @@ def hold_undetermined_directions(
 
     Where an added effect leaves a direction along which the relative standard error of
     the fit is at least :data:`~sk_offwhite.loop._gauge.MAX_RELATIVE_ERROR`, or its
-    Gauss-Newton matrix singular (a calibrated level whose scale
-    nothing else fixes: see :mod:`~sk_offwhite.loop._gauge`), the added effect's parameter
-    that loads most on the direction is fixed at its fitted value, and the physics is
-    refitted from ``est`` as the loop fits an effect set and cross-validated. The fit is
-    kept when its estimation RMSE rose by at most :data:`HOLD_SLACK` and its CV RMSE by at
-    most ``settings.tolerance`` over ``cv`` (a model with fewer free parameters is
-    preferred within it, as a smaller effect set is).
+    Gauss-Newton matrix singular (a calibrated level whose scale nothing else fixes: see
+    :mod:`~sk_offwhite.loop._gauge`), the added effect's parameter that loads most on the
+    direction is fixed at its fitted value, and the physics is refitted from ``est`` as
+    the loop fits an effect set and cross-validated. The fit is kept when its estimation
+    RMSE rose by at most :data:`HOLD_SLACK` and its CV RMSE by at most
+    ``settings.tolerance`` over ``cv`` (a model with fewer free parameters is preferred
+    within it, as a smaller effect set is).
 
     Parameters
     ----------
