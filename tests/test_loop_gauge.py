@@ -22,7 +22,7 @@ from sk_offwhite.loop._gauge import (
     holding,
     undetermined_directions,
 )
-from sk_offwhite.loop._loop import _estimator, _rmse
+from sk_offwhite.loop._loop import _estimator, _holding_as, _rmse
 
 CALIBRATION = SensorCalibration(0, center=4.0, scale=2.0, name="sensor_x")
 
@@ -167,3 +167,12 @@ def test_an_exact_symmetry_of_two_biases_is_broken_by_holding_one():
         )
     fixed = [n for n in ("bias_a_value", "bias_b_value") if held_physics.parameters[n].fixed]
     assert len(fixed) == 1 and fixed[0] in note and np.isfinite(held_cv)
+
+
+def test_the_results_augmented_physics_holds_what_the_final_model_holds():
+    data, template = _tank(free_gain=True)
+    fitted = holding(template.with_parameters(k=0.7), {"sensor_x_c2": 0.25})
+    held = _holding_as(template, fitted)
+    assert held.parameters["sensor_x_c2"].fixed and held.parameters["sensor_x_c2"].value == 0.25
+    assert held.parameters["k"].value == template.parameters["k"].value  # starts unchanged
+    assert not template.parameters["sensor_x_c2"].fixed

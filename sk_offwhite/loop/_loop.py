@@ -189,30 +189,30 @@ class LoopSettings:
 class LoopResult:
     """Everything the loop found; the report is written from it.
 
-    ``selection`` holds ``(label, cross-validated RMSE)`` of the declared physics and of
-    every nested effect set tried; ``single_fits`` ``(effect name, estimation RMSE)`` of
-    each candidate fitted alone; ``gamma_path`` and ``final_gamma_path`` the support paths
-    (:class:`~sk_offwhite.GammaPath`, ``None`` for a single γ) of the two fits with δ
-    (``with_delta`` and ``final_with_delta`` are ``None`` without ``fit_delta`` or when
-    they failed). ``range_facts`` holds what the declared physics' simulation says of the
-    measured outputs: their ceilings and floors
+    ``augmented_physics`` is the declared physics with the added effects (their parameters
+    at their declared and proposed values), with the parameters the final model holds on the
+    directions its fit leaves undetermined fixed at their fitted values
+    (:func:`hold_undetermined_directions`). ``selection`` holds ``(label, cross-validated
+    RMSE)`` of the declared physics and of every nested effect set tried; ``single_fits``
+    ``(effect name, estimation RMSE)`` of each candidate fitted alone; ``gamma_path`` and
+    ``final_gamma_path`` the support paths (:class:`~sk_offwhite.GammaPath`, ``None`` for a
+    single γ) of the two fits with δ (``with_delta`` and ``final_with_delta`` are ``None``
+    without ``fit_delta`` or when they failed). ``range_facts`` holds what the declared
+    physics' simulation says of the measured outputs: their ceilings and floors
     (:class:`~sk_offwhite.diagnose.RangeViolation`) and their repeated one-sample jumps
-    (:class:`~sk_offwhite.diagnose.OutputJump`). ``evidence`` is the physics-only fit
-    with the dictionary the hypotheses come from; ``final_with_output_delta`` the
-    augmented physics with a sparse correction of its output map and
-    ``output_gamma_path`` its path (``None`` without
-    ``fit_output_delta``, when the outputs do not read states, or when it failed);
-    ``cv_errors`` maps each fitted model's key (``"baseline"``, ``"with_delta"``,
+    (:class:`~sk_offwhite.diagnose.OutputJump`). ``evidence`` is the physics-only fit with
+    the dictionary the hypotheses come from; ``final_with_output_delta`` the augmented
+    physics with a sparse correction of its output map and ``output_gamma_path`` its path
+    (``None`` without ``fit_output_delta``, when the outputs do not read states, or when it
+    failed); ``cv_errors`` maps each fitted model's key (``"baseline"``, ``"with_delta"``,
     ``"final"``, ``"final_with_delta"``, ``"final_with_output_delta"``) to its
     cross-validated RMSE, ``chosen`` is the key of the lowest (a fit with δ that kept no
     term excepted: it is the physics it corrects); ``failures`` one line per fit that
-    failed; ``notes`` what the loop decided not to use and why; ``timings`` the wall time
-    of each stage in seconds (the stages are logged as they run, see
-    :mod:`~sk_offwhite.loop._progress`); ``set_fits``
-    each model of the ``selection`` trail fitted on the whole estimation record, by its
-    label (``None`` where that fit failed), so that every structural step can be scored
-    on validation data (the report does).
-    """
+    failed; ``notes`` what the loop decided not to use and why; ``timings`` the wall time of
+    each stage in seconds (the stages are logged as they run, see
+    :mod:`~sk_offwhite.loop._progress`); ``set_fits`` each model of the ``selection`` trail
+    fitted on the whole estimation record, by its label (``None`` where that fit failed), so
+    that every structural step can be scored on validation data (the report does)."""
 
     physics: object
     augmented_physics: object
@@ -1145,6 +1145,18 @@ def hold_undetermined_directions(
     return held_physics, refit, held_cv, held_note(held, directions, rmse, (cv, held_cv))
 
 
+def _holding_as(template, fitted):
+    """``template`` with the parameters that ``fitted`` (the same structure) holds fixed
+    and ``template`` leaves free fixed as in ``fitted``: the augmented physics as the final
+    model has it (:func:`hold_undetermined_directions`)."""
+    held = {
+        name: spec
+        for name, spec in fitted.parameters.items()
+        if spec.fixed and not template.parameters[name].fixed
+    }
+    return template.with_parameters(**held)
+
+
 def _undetermined(est: GreyBoxSparseRegressor, u, z) -> list[str]:
     """Names of the variables of ``est``'s fit with an infinite standard error (on a flat
     direction of the relative Hessian: :func:`~sk_offwhite.certify.identifiability`);
@@ -1246,7 +1258,7 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
     chosen = _choose(cv_errors, models, notes)
     return LoopResult(
         physics,
-        augment(physics, *effects),
+        _holding_as(augment(physics, *effects), augmented),
         baseline,
         models.get("with_delta"),
         final,
