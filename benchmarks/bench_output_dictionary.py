@@ -10,8 +10,8 @@ support path by 3-fold CV on the estimation record, as the loop does. Prints eac
 setting's CV RMSE (the loop's score), number of terms and the validation RMSE under both
 protocols (only reported: no setting is chosen on it).
 
-Run ``python benchmarks/bench_output_dictionary.py [--n-jobs N]`` (about 5 min on 2 cores
-with the compilation cache filled by a run of the main job).
+Run ``python benchmarks/bench_output_dictionary.py [--n-jobs N]`` (about 3-5 min on 2
+cores with the compilation cache filled by a run of the main job).
 """
 
 from __future__ import annotations
