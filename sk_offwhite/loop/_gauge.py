@@ -150,13 +150,12 @@ def holding(physics: PhysicsModel, held: dict) -> PhysicsModel:
 
 def held_note(held: dict, directions, rmse: tuple, cv: tuple) -> str:
     """The report's sentence on the ``held`` parameters: the directions they remove (the
-    other variables that load on the first direction each is on by
-    :data:`MIN_EFFECT_LOADING`), the estimation RMSE before and after (the fit is
-    unchanged) and the CV RMSE before and after (the folds no longer wander along the
-    directions)."""
+    other variables that load by :data:`MIN_EFFECT_LOADING` on the direction each loads on
+    most), the estimation RMSE before and after (the fit is unchanged) and the CV RMSE
+    before and after (the folds no longer wander along the directions)."""
     parts = []
     for name, value in held.items():
-        direction = next(d for d in directions if name in d)
+        direction = max(directions, key=lambda d: abs(d.get(name, 0.0)))
         loads = {other: abs(load) for other, load in direction.items() if other != name}
         others = ", ".join(n for n, load in loads.items() if load >= MIN_EFFECT_LOADING)
         parts.append(f"{name} = {value:.4g} (with {others})")
