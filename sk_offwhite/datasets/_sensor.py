@@ -107,9 +107,8 @@ def make_nonlinear_sensor_tank(
         "description": "The level sensor reads x + q x^2 instead of x.",
         "rates": {"curvature": SENSOR_CURVATURE},
     }
-    n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
     return _sensor_tank_data(
-        n, stds, check_random_state(random_state), sensor_reading, hidden,
+        (n_samples, noise_std, process_noise_std, random_state), sensor_reading, hidden,
         "reads z = x + 0.04 x^2; the physics reads z = x.\n",
     )  # fmt: skip
 
@@ -160,18 +159,22 @@ def make_stepped_sensor_tank(
         "description": "The level sensor reads x + H [x > L] instead of x.",
         "rates": {"step_level": STEP_LEVEL, "step_height": STEP_HEIGHT},
     }
-    n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
     return _sensor_tank_data(
-        n, stds, check_random_state(random_state), stepped_reading, hidden,
+        (n_samples, noise_std, process_noise_std, random_state), stepped_reading, hidden,
         "reads z = x + 0.4 [x > 5]; the physics reads z = x.\n",
     )  # fmt: skip
 
 
-def _sensor_tank_data(n: int, stds, rng, reading, hidden: dict, read_as: str) -> Bunch:
-    """The records and Bunch of a sensor tank whose sensor reads ``reading(x)``; ``hidden``
-    holds the description and rates of the hidden effect, ``read_as`` ends the DESCR."""
+def _sensor_tank_data(sampling, reading, hidden: dict, read_as: str) -> Bunch:
+    """The records and Bunch of a sensor tank whose sensor reads ``reading(x)``;
+    ``sampling`` is the generator's ``(n_samples, noise_std, process_noise_std,
+    random_state)``, ``hidden`` holds the description and rates of the hidden effect,
+    ``read_as`` ends the DESCR."""
     import pysindy as ps
 
+    n_samples, noise_std, process_noise_std, random_state = sampling
+    n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
+    rng = check_random_state(random_state)
     truth = _sensor_tank_physics(SENSOR_THETA["k"], SENSOR_X0)
     records = [_sensor_record(rng, n, truth, stds, reading) for _ in range(2)]
     (est, est_noise), (val, val_noise) = records

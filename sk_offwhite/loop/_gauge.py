@@ -36,6 +36,8 @@ from ..certify._ident_problem import local_problem
 from ..certify._identifiability import (
     direction_loadings,
     fit_residual_and_jacobian,
+    flat_indices,
+    relative_spectrum,
     variable_scales,
 )
 
@@ -65,10 +67,10 @@ def relative_errors(values, jacobian, residual, rtol: float = RTOL):
     r"""Eigenvectors of :math:`D J^\top J D` (columns) and the standard error of the
     relative change along each (``inf`` where the matrix is singular)."""
     scales = variable_scales(values)
-    scaled = jacobian * scales
-    eigenvalues, eigenvectors = np.linalg.eigh(scaled.T @ scaled)
+    eigenvalues, eigenvectors = relative_spectrum(jacobian.T @ jacobian, scales)
     variance = residual @ residual / max(residual.size - scales.size, 1)
-    flat = eigenvalues <= rtol * max(float(eigenvalues[-1]), np.finfo(float).tiny)
+    flat = np.zeros(eigenvalues.size, bool)
+    flat[flat_indices(eigenvalues, rtol)] = True
     errors = np.sqrt(variance / np.where(flat, 1.0, eigenvalues))
     return eigenvectors, np.where(flat, np.inf, errors)
 

@@ -1131,9 +1131,10 @@ def hold_undetermined_directions(
     held = held_parameters(directions, physics, effects, est.parameters_)
     if not held:
         return physics, est, cv, None
+    warm = warm_physics(physics, est)
     if cv is None:
-        cv = cross_validated_rmse(warm_physics(physics, est), u, z, settings)
-    held_physics = holding(warm_physics(physics, est), held)
+        cv = cross_validated_rmse(warm, u, z, settings)
+    held_physics = holding(warm, held)
     refit = _attempt([] if failures is None else failures, "undetermined directions held", _fit_set,
                      _estimator(held_physics, settings), effects, u, z, settings)  # fmt: skip
     if refit is None:
@@ -1150,11 +1151,11 @@ def _holding_as(template, fitted):
     and ``template`` leaves free fixed as in ``fitted``: the augmented physics as the final
     model has it (:func:`hold_undetermined_directions`)."""
     held = {
-        name: spec
+        name: spec.value
         for name, spec in fitted.parameters.items()
         if spec.fixed and not template.parameters[name].fixed
     }
-    return template.with_parameters(**held)
+    return holding(template, held)
 
 
 def _undetermined(est: GreyBoxSparseRegressor, u, z) -> list[str]:
