@@ -41,6 +41,7 @@ from sk_offwhite.loop import (
     warm_physics,
     write_report,
 )
+from sk_offwhite.loop._candidates import DEAD_ZONE_START
 from sk_offwhite.loop._hypotheses import _sign, feature_variables
 from sk_offwhite.loop._loop import _best_starts, _capped, _quick_fit, _set_cv, _swap
 from sk_offwhite.loop._progress import StageClock
@@ -174,7 +175,8 @@ def test_an_input_term_proposes_an_actuator_saturation():
         c.effect for c in propose_effects([hyp], [], ("w",), ["w"], u, u=u, input_names=("u",))
     ]
     assert InputSaturation(0, float(np.quantile(np.abs(u), 0.9)), name="actuator_u") in effects
-    assert any(isinstance(e, DeadZone) for e in effects)
+    width = DEAD_ZONE_START * float(np.sqrt(np.mean(u**2)))  # next to the model without it
+    assert DeadZone(0, width, name="dead_zone_u") in effects
     assert not any(isinstance(e, Overflow) for e in effects)  # w changes sign: not a level
 
 
