@@ -79,6 +79,12 @@ def _tanks(**kwargs):
     return data
 
 
+def _cubic_sensor(**kwargs):
+    """The tank whose level sensor reads ``x + 0.04 x^2 + 0.004 x^3``: the loop's quadratic
+    calibration must be refined into the cubic one."""
+    return make_nonlinear_sensor_tank(cubic=0.004, **kwargs)
+
+
 # name: (generator, short length, effect kind, (fitted parameter, rates key) or None)
 SYSTEMS = {
     "drive": (make_coulomb_drive, 2000, Friction, ("friction_v_coulomb", "coulomb")),
@@ -96,6 +102,7 @@ SYSTEMS = {
     "actuator": (make_saturating_actuator, 500, InputSaturation, None),
     "tanks": (_tanks, 500, Overflow, None),
     "sensor": (make_nonlinear_sensor_tank, 400, SensorCalibration, None),
+    "cubic_sensor": (_cubic_sensor, 400, SensorCalibration, None),
     "stepped_sensor": (
         make_stepped_sensor_tank,
         400,

@@ -16,7 +16,8 @@ Variants:
   whose cross-section grows with the level (each level's rate divided by ``1 + c_i x_i``,
   ``c1``, ``c2`` or both freed from 0): constants of the declared laws, freed as the loop
   frees a relaxable one;
-* the sensor calibration of degree 3 and 4 instead of 2;
+* the sensor calibration of one and two degrees more than the chosen one (the loop's
+  refinement tries one more);
 * the pump acting 1, 2 or 3 samples late (the input delayed, on both records);
 * the same ODE integrated more accurately than eq. (21)'s one Euler step per sample (4
   Euler sub-steps, one RK4 step): is the discretisation part of what the model misses?
@@ -24,8 +25,8 @@ Variants:
   2.5 % of each level's spread;
 * a dead zone of the pump (:class:`~sk_offwhite.DeadZone`: no flow below a voltage, as a
   pump that must lift the water to the upper tank's inlet), its width started at 2 % of
-  the voltage's RMS (next to the model without it) and at 25 % (where the loop's
-  candidate starts), alone and with the overflows' corners fitted;
+  the voltage's RMS (next to the model without it, where the loop's candidate starts)
+  and at 25 % (where it started before), alone and with the overflows' corners fitted;
 * a term in ``x2`` in the upper tank's equation (the pump lifting from a reservoir that
   the lower tank's water is taken from), alone and with the dead zone;
 * multiple starts of the effects' levels and fraction (``--starts``): does the fit end in
@@ -193,7 +194,8 @@ def variants(result, declared, voltage_rms: float):
              "cross-section slope c2": ("c2",), "both slopes": ("c1", "c2")}  # fmt: skip
     for label, names in freed.items():
         yield f"+ {label} freed", augment(declared, *effects, *(laws[n] for n in names)), 0
-    for sensor, degree in itertools.product(sensors, (3, 4)):
+    for sensor, more in itertools.product(sensors, (1, 2)):
+        degree = sensor.degree + more
         others = [e for e in effects if e is not sensor]
         calibration = SensorCalibration(
             sensor.output, sensor.center, sensor.scale, degree=degree, name=sensor.name

@@ -18,6 +18,8 @@ augmented models are valid ``jit`` static arguments and picklable.
 
 from __future__ import annotations
 
+import re
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -180,6 +182,19 @@ class Effect:
         """One line in words, naming the variables (``values``: fitted parameters, used
         where they change the wording)."""
         raise NotImplementedError
+
+    def richer(self) -> Effect | None:
+        """The next variant of the same mechanism with one more degree of freedom, which
+        holds this effect as a special case (a calibration of one degree more), or
+        ``None`` (the default: no such variant). The loop tries it in place of the effect
+        once the effect is chosen, started from :meth:`richer_start`."""
+        return None
+
+    def richer_start(self, values: dict) -> dict:
+        """The start of :meth:`richer`'s parameters from this effect's fitted ``values``
+        (by parameter name; any type): where the richer variant reproduces this effect,
+        its extra parameters at their declared starts."""
+        return {}
 
     def _key(self):
         return (type(self), tuple(sorted(vars(self).items())))
@@ -469,6 +484,26 @@ class SensorCalibration(Effect):
             f"the sensor of {output_names[self.output]} reads a degree-{self.degree} "
             "polynomial of it (an uncalibrated, nonlinear sensor)"
         )
+
+    @property
+    def mechanism(self) -> str:
+        """The calibration of one output, whatever its degree (a set holds one)."""
+        return f"sensor calibration of output {self.output}"
+
+    def richer(self) -> SensorCalibration:
+        """The calibration of degree :math:`d + 1` (named ``{base}_degree{d+1}``, ``base``
+        the name without an earlier ``_degree`` suffix), on the same :math:`m` and
+        :math:`s`."""
+        base = re.sub(r"_degree\d+$", "", self.name)
+        return self.replace(degree=self.degree + 1, name=f"{base}_degree{self.degree + 1}")
+
+    def richer_start(self, values: dict) -> dict:
+        r""":math:`c_0 \dots c_d` carried over, :math:`c_{d+1} = 0`."""
+        richer = self.richer()
+        carried = {
+            f"{richer.name}_c{k}": values[f"{self.name}_c{k}"] for k in range(self.degree + 1)
+        }
+        return {**richer.parameters(), **carried}
 
 
 class SensorStep(Effect):

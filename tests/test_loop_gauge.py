@@ -5,7 +5,7 @@ import warnings
 import numpy as np
 import pytest
 
-from sk_offwhite import Bias, Parameter, SensorCalibration, augment
+from sk_offwhite import Bias, Leak, Parameter, SensorCalibration, augment
 from sk_offwhite.certify import identifiability
 from sk_offwhite.datasets import make_nonlinear_sensor_tank
 from sk_offwhite.loop import (
@@ -69,6 +69,21 @@ def test_a_direction_of_one_parameter_alone_is_not_a_trade_off_and_nothing_is_he
     assert held_parameters([traded], physics, [CALIBRATION], fitted) == {"sensor_x_c2": 1e-4}
 
 
+def test_a_direction_within_one_effect_is_its_own_uncertainty_and_nothing_is_held():
+    """A calibration fitted to nearly nothing: its coefficients' relative errors are large
+    together (the stepped-sensor tank), but no other source trades off with them; with a
+    second effect on the direction, the effect's parameter is held."""
+    data, physics = _tank(free_gain=True)
+    physics = augment(physics, Leak(0))
+    fitted = {"k": 0.5, "b": 0.4, "sensor_x_c0": -0.006, "sensor_x_c1": 0.0, "sensor_x_c2": 0.0}
+    fitted["leak_rate"] = 0.01
+    within = {"sensor_x_c2": 0.72, "sensor_x_c0": 0.69}
+    assert held_parameters([within], physics, [CALIBRATION, Leak(0)], fitted) == {}
+    across = {"sensor_x_c2": 0.72, "leak_rate": 0.69}
+    held = held_parameters([across], physics, [CALIBRATION, Leak(0)], fitted)
+    assert held == {"sensor_x_c2": 0.0}
+
+
 def _record(values, gains, noise=0.1, n=100):
     """``(jacobian, residual)`` whose relative Gauss-Newton matrix is ``diag(gains**2)``
     and whose residual variance is ``noise**2``: relative standard errors
@@ -100,7 +115,10 @@ def test_initial_states_and_fixed_parameters_are_never_held_and_each_parameter_o
     data, physics = _tank(free_gain=False)  # b is fixed
     fitted = {"k": 0.5, "b": 0.5, "sensor_x_c0": 0.1, "sensor_x_c1": 0.2, "sensor_x_c2": 0.3}
     assert held_parameters([{"x(0)": 1.0, "b": 0.2}], physics, [CALIBRATION], fitted) == {}
-    directions = [{"sensor_x_c2": 0.9, "k": 0.4}, {"sensor_x_c2": 0.7, "sensor_x_c0": 0.6}]
+    directions = [
+        {"sensor_x_c2": 0.9, "k": 0.4},
+        {"sensor_x_c2": 0.7, "sensor_x_c0": 0.6, "k": 0.2},
+    ]
     held = held_parameters(directions, physics, [CALIBRATION], fitted)
     assert held == {"sensor_x_c2": 0.3, "sensor_x_c0": 0.1}
 

@@ -78,7 +78,8 @@ def test_a_set_and_the_final_physics_with_a_calibration_are_fitted_on_the_whole_
     monkeypatch,
 ):
     """The rule of the quick fits holds where a set is refitted before its CV and where the
-    chosen set is fitted as the final physics (both through ``_fit_set``)."""
+    chosen set is fitted as the final physics (both through ``_fit_set``), and where a
+    calibrated set is refitted with a parameter held on an undetermined direction."""
     from sk_offwhite.loop import _loop
 
     def cross_validated(board, effects, u, z, settings):
@@ -87,7 +88,9 @@ def test_a_set_and_the_final_physics_with_a_calibration_are_fitted_on_the_whole_
         assert fitted is not None, failures
         return score
 
-    assert _fit_protocols(monkeypatch, cross_validated) == [50, None, None]
+    horizons = _fit_protocols(monkeypatch, cross_validated)
+    assert horizons[0] == 50 and len(horizons) >= 3
+    assert all(horizon is None for horizon in horizons[1:])
 
 
 def test_a_zero_calibration_is_the_declared_output():

@@ -3,6 +3,8 @@ output map (a curved characteristic, a step in the reading)."""
 
 from __future__ import annotations
 
+from functools import partial
+
 import numpy as np
 from sklearn.utils import Bunch, check_random_state
 
@@ -23,9 +25,9 @@ SENSOR_CURVATURE, SENSOR_DT, SENSOR_X0 = 0.04, 1.0, 4.0
 STEP_LEVEL, STEP_HEIGHT = 5.0, 0.4
 
 
-def sensor_reading(level, curvature: float = SENSOR_CURVATURE):
-    """What the sensor reads at ``level``: :math:`x + q x^2`."""
-    return level + curvature * level**2
+def sensor_reading(level, curvature: float = SENSOR_CURVATURE, cubic: float = 0.0):
+    """What the sensor reads at ``level``: :math:`x + q x^2 + r x^3` (``cubic``: :math:`r`)."""
+    return level + curvature * level**2 + cubic * level**3
 
 
 def stepped_reading(level, step_level: float = STEP_LEVEL, step_height: float = STEP_HEIGHT):
@@ -69,6 +71,7 @@ def make_nonlinear_sensor_tank(
     random_state=None,
     *,
     process_noise_std: float = 0.0,
+    cubic: float = 0.0,
 ) -> Bunch:
     """Single tank read by a level sensor whose characteristic is not linear.
 
@@ -76,14 +79,16 @@ def make_nonlinear_sensor_tank(
 
     .. math::
 
-        \\dot x = -k \\sqrt{x} + b u, \\qquad z = x + q x^2 + \\eta,
+        \\dot x = -k \\sqrt{x} + b u, \\qquad z = x + q x^2 + r x^3 + \\eta,
 
     with :math:`k = 0.5`, :math:`b = 0.5` (the pump gain, known: fixed in the declared
-    physics), :math:`q = 0.04` and :math:`x(0) = 4`. The physics reads the level as it is
-    (:math:`z = x`); the missing effect is static and in the output map, so no term of
-    the state equations can stand for it exactly. ``hidden_effect["rates"]`` is
-    ``{"curvature": q}``; :func:`sensor_reading` is the true characteristic. Input: pump
-    flow, multisine 0-0.02 cycles/sample, mean 2, std 0.6, clipped at 0 (levels about 0-12).
+    physics), :math:`q = 0.04`, :math:`r` = ``cubic`` (0 by default: a quadratic
+    characteristic, which the loop's calibration of degree 2 holds) and :math:`x(0) = 4`.
+    The physics reads the level as it is (:math:`z = x`); the missing effect is static and
+    in the output map, so no term of the state equations can stand for it exactly.
+    ``hidden_effect["rates"]`` is ``{"curvature": q, "cubic": r}``; :func:`sensor_reading`
+    is the true characteristic. Input: pump flow, multisine 0-0.02 cycles/sample, mean 2,
+    std 0.6, clipped at 0 (levels about 0-12).
     Suggested library: polynomials of degree 2 on ``[x, u]``.
 
     Parameters
@@ -96,6 +101,10 @@ def make_nonlinear_sensor_tank(
         Seed of the input and noise realisations.
     process_noise_std : float, default=0.0
         Standard deviation of a Gaussian disturbance added to the level update.
+    cubic : float, default=0.0
+        :math:`r`, the characteristic's cubic coefficient (per level unit squared):
+        with 0.004 the reading at the top level (12) is 6.9 above the level, and a
+        calibration of degree 2 leaves a curve the noise does not hide.
 
     Returns
     -------
@@ -103,14 +112,19 @@ def make_nonlinear_sensor_tank(
         ``u, z, u_val, z_val, x, x_val, physics, true_parameters, true_x0, true_x0_val,
         hidden_effect, suggested_library, noise, sampling_time, DESCR``.
     """
+    cubic = float(cubic)
+    if not np.isfinite(cubic):
+        raise ValueError(f"cubic must be finite, got {cubic!r}.")
     hidden = {
-        "description": "The level sensor reads x + q x^2 instead of x.",
-        "rates": {"curvature": SENSOR_CURVATURE},
+        "description": "The level sensor reads x + q x^2 + r x^3 instead of x.",
+        "rates": {"curvature": SENSOR_CURVATURE, "cubic": cubic},
     }
     return _sensor_tank_data(
-        (n_samples, noise_std, process_noise_std, random_state), sensor_reading, hidden,
-        "reads z = x + 0.04 x^2; the physics reads z = x.\n",
-    )  # fmt: skip
+        (n_samples, noise_std, process_noise_std, random_state),
+        partial(sensor_reading, cubic=cubic),
+        hidden,
+        f"reads z = x + 0.04 x^2{f' + {cubic:g} x^3' if cubic else ''}; the physics reads z = x.\n",
+    )
 
 
 def make_stepped_sensor_tank(

@@ -1,0 +1,78 @@
+"""The loop's refinement of a chosen effect into its richer variant (a calibration of one
+degree more)."""
+
+import warnings
+
+import jax.numpy as jnp
+import pytest
+
+from sk_offwhite import Leak, SensorCalibration
+from sk_offwhite.datasets import make_nonlinear_sensor_tank
+from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
+from sk_offwhite.loop._loop import _refinements, _with_richer
+
+CALIBRATION = SensorCalibration(0, center=4.0, scale=2.0, name="sensor_x")
+
+
+def test_the_richer_calibration_has_one_degree_more_and_the_same_mechanism():
+    richer = CALIBRATION.richer()
+    assert (richer.degree, richer.name) == (3, "sensor_x_degree3")
+    assert (richer.center, richer.scale, richer.output) == (4.0, 2.0, 0)
+    assert richer.mechanism == CALIBRATION.mechanism
+    assert richer.richer().name == "sensor_x_degree4"
+    assert Leak(0).richer() is None
+
+
+def test_the_richer_calibration_starts_where_it_reads_as_the_fitted_one():
+    values = {"sensor_x_c0": 0.3, "sensor_x_c1": -0.2, "sensor_x_c2": 0.05}
+    start = CALIBRATION.richer_start(values)
+    assert start["sensor_x_degree3_c3"].value == 0.0
+    theta = {k: getattr(v, "value", v) for k, v in start.items()}
+    z = jnp.array([7.5])
+    richer = CALIBRATION.richer().apply_output(None, None, z, theta)
+    assert float(richer[0]) == pytest.approx(
+        float(CALIBRATION.apply_output(None, None, z, values)[0])
+    )
+
+
+def test_refinements_exchange_each_effect_that_has_a_richer_variant():
+    leak = Leak(0)
+    warm = {
+        "leak_x_rate": 0.1,
+        "sensor_x_c0": 0.3,
+        "sensor_x_c1": 1.0,
+        "sensor_x_c2": 0.0,
+        "k": 2.0,
+    }
+    moves = list(_refinements((leak, CALIBRATION), warm, 0.5, known=lambda effect: True))
+    assert len(moves) == 1
+    effects, starts, bar = moves[0]
+    assert effects == (leak, CALIBRATION.richer()) and bar == 0.5
+    assert starts[0]["k"] == 2.0 and starts[0]["sensor_x_degree3_c1"] == 1.0
+    assert not any(name.startswith("sensor_x_c") for name in starts[0])
+    assert _with_richer([leak, CALIBRATION]) == [leak, CALIBRATION, CALIBRATION.richer()]
+    assert list(_refinements((leak, CALIBRATION), warm, 0.5, known=lambda effect: False)) == []
+
+
+def _loop(data):
+    settings = LoopSettings(fit_delta=False, n_folds=2, max_iter=100)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return close_the_loop(
+            data.physics, data.suggested_library, data.u, data.z, settings=settings
+        )
+
+
+def test_the_loop_refines_a_quadratic_calibration_where_the_sensor_is_cubic():
+    """The loop proposes a calibration of degree 2; where the sensor's characteristic is
+    cubic, the refinement replaces it with degree 3, whose CV RMSE is lower by more than
+    ``min_gain``, and the validation error falls to the noise (0.02). The quadratic
+    sensor's loop keeps degree 2 (tests/test_sensor_calibration.py)."""
+    data = make_nonlinear_sensor_tank(n_samples=400, random_state=1, cubic=0.004)
+    result = _loop(data)
+    assert [e.name for e in result.effects] == ["sensor_x_degree3"]
+    trail = dict(result.selection)
+    assert trail["sensor_x_degree3"] < (1 - LoopSettings().min_gain) * trail["sensor_x"]
+    rows = score_models(result, {"validation": (data.u_val, data.z_val)}, init_window=50)
+    rmse = {r["model"]: r["rmse"] for r in rows if r["protocol"] == "init_window"}
+    assert rmse["augmented physics"] < 1.5 * data.noise["output"]["std"]
