@@ -4,10 +4,11 @@ degree more)."""
 import warnings
 
 import jax.numpy as jnp
+import numpy as np
 import pytest
 
 from sk_offwhite import Leak, SensorCalibration
-from sk_offwhite.datasets import make_nonlinear_sensor_tank
+from sk_offwhite.datasets import make_nonlinear_sensor_tank, sensor_reading
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 from sk_offwhite.loop._loop import _refinements, _with_richer
 
@@ -76,3 +77,14 @@ def test_the_loop_refines_a_quadratic_calibration_where_the_sensor_is_cubic():
     rows = score_models(result, {"validation": (data.u_val, data.z_val)}, init_window=50)
     rmse = {r["model"]: r["rmse"] for r in rows if r["protocol"] == "init_window"}
     assert rmse["augmented physics"] < 1.5 * data.noise["output"]["std"]
+
+
+def test_the_cubic_sensor_reads_its_characteristic_and_refuses_a_non_finite_coefficient():
+    data = make_nonlinear_sensor_tank(n_samples=50, random_state=0, cubic=0.004)
+    reading = data.z - data.noise["output_noise"]
+    np.testing.assert_allclose(reading, sensor_reading(data.x, cubic=0.004))
+    assert data.hidden_effect["rates"] == {"curvature": 0.04, "cubic": 0.004}
+    plain = make_nonlinear_sensor_tank(n_samples=50, random_state=0)
+    np.testing.assert_array_equal(plain.x, data.x)
+    with pytest.raises(ValueError, match="cubic"):
+        make_nonlinear_sensor_tank(n_samples=50, cubic=np.nan)

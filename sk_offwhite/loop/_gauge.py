@@ -25,9 +25,9 @@ the physics says of them. A direction the declared physics has on its own is lef
 user (the identifiability verdict reports it), as are initial states; so is a direction
 within one effect's parameters, the uncertainty of that effect's own size or shape (a
 calibration the data cannot tell from none: on the stepped-sensor tank one fitted to
-:math:`c_0 = -0.006`, :math:`c_3 = -0.0007` had a direction loading both by 0.7, a
-relative error of 1.4, as near-zero values have for any small absolute one), which the
-effect set's cross-validation judges.
+nearly nothing, :math:`c_1 = -0.002`, had a direction loading :math:`c_1` by 0.78 and
+:math:`c_0` by 0.62, a relative error of 1.4, as near-zero values have for any small
+absolute change), which the effect set's cross-validation judges.
 """
 
 from __future__ import annotations
