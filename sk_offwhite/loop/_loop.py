@@ -366,22 +366,22 @@ def _set_cv(board, effects, warm, u, z, settings, failures):
     would be kept: an effect may move the declared parameters far (a sensor calibration
     rescales the levels the outflow laws act on), and folds started from the declared
     physics' fit would then judge the set from a start that belongs to another model.
-    A parameter is held on each direction of that fit the data do not determine, where
-    the refit with it held fits the record as well (:func:`hold_undetermined_directions`,
-    without its comparison of the two CV errors, which the final model makes): otherwise
-    the folds wander along the direction, and a set is judged by where its folds' fits
-    stopped there (measured on the Cascaded Tanks' four effects: CV 0.1092 free, 0.1064
-    held; with the calibration of degree 3, 0.1133 and 0.1005)."""
+    A parameter is held at its fitted value on each direction of that fit the data do not
+    determine (:func:`hold_undetermined_directions`, without its refit, which would end
+    where the fit is, and without its comparison of the two CV errors, which the final
+    model makes): otherwise the folds wander along the direction, and a set is judged by
+    where its folds' fits stopped there (measured on the Cascaded Tanks' four effects: CV
+    0.1092 free, 0.1064 held; with the calibration of degree 3, 0.1133 and 0.1005)."""
     model = board.model(effects, warm)
     label = "effects " + _label(effects)
     fitted = _attempt(failures, label, _fit_set, _estimator(model, settings), effects, u, z,
                       settings)  # fmt: skip
     if fitted is None:
         return cross_validated_rmse(model, u, z, settings), fitted
-    found = _held_fit(model, fitted, u, z, effects, settings, failures)
-    if found is not None:
-        model, fitted = found[:2]
-    return cross_validated_rmse(warm_physics(model, fitted), u, z, settings), fitted
+    directions = _undetermined_directions(fitted, u, z)
+    held = held_parameters(directions, model, effects, fitted.parameters_)
+    start = holding(warm_physics(model, fitted), held)
+    return cross_validated_rmse(start, u, z, settings), fitted
 
 
 def _sets_cv(board, steps, u, z, settings, failures) -> list:
