@@ -11,6 +11,7 @@ from sk_offwhite import Leak, SensorCalibration
 from sk_offwhite.datasets import make_nonlinear_sensor_tank, sensor_reading
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 from sk_offwhite.loop._loop import _refinements, _with_richer
+from sk_offwhite.loop._switchboard import effect_sets
 
 CALIBRATION = SensorCalibration(0, center=4.0, scale=2.0, name="sensor_x")
 
@@ -45,14 +46,17 @@ def test_refinements_exchange_each_effect_that_has_a_richer_variant():
         "sensor_x_c2": 0.0,
         "k": 2.0,
     }
-    moves = list(_refinements((leak, CALIBRATION), warm, 0.5, known=lambda effect: True))
+    physics = make_nonlinear_sensor_tank(n_samples=50, random_state=0).physics
+    board = effect_sets(physics, _with_richer([leak, CALIBRATION]), shared=False)
+    moves = list(_refinements((leak, CALIBRATION), warm, 0.5, board))
     assert len(moves) == 1
     effects, starts, bar = moves[0]
     assert effects == (leak, CALIBRATION.richer()) and bar == 0.5
     assert starts[0]["k"] == 2.0 and starts[0]["sensor_x_degree3_c1"] == 1.0
     assert not any(name.startswith("sensor_x_c") for name in starts[0])
     assert _with_richer([leak, CALIBRATION]) == [leak, CALIBRATION, CALIBRATION.richer()]
-    assert list(_refinements((leak, CALIBRATION), warm, 0.5, known=lambda effect: False)) == []
+    without = effect_sets(physics, [leak, CALIBRATION], shared=False)
+    assert list(_refinements((leak, CALIBRATION), warm, 0.5, without)) == []
 
 
 def _loop(data):

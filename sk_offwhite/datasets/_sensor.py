@@ -115,6 +115,7 @@ def make_nonlinear_sensor_tank(
     cubic = float(cubic)
     if not np.isfinite(cubic):
         raise ValueError(f"cubic must be finite, got {cubic!r}.")
+    cubic_term = f" + {cubic:g} x^3" if cubic else ""
     hidden = {
         "description": "The level sensor reads x + q x^2 + r x^3 instead of x.",
         "rates": {"curvature": SENSOR_CURVATURE, "cubic": cubic},
@@ -123,7 +124,7 @@ def make_nonlinear_sensor_tank(
         (n_samples, noise_std, process_noise_std, random_state),
         partial(sensor_reading, cubic=cubic),
         hidden,
-        f"reads z = x + 0.04 x^2{f' + {cubic:g} x^3' if cubic else ''}; the physics reads z = x.\n",
+        f"reads z = x + 0.04 x^2{cubic_term}; the physics reads z = x.\n",
     )
 
 

@@ -50,7 +50,7 @@ import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field, replace
-from functools import partial
+from typing import NamedTuple
 
 import numpy as np
 from sklearn.base import clone
@@ -378,8 +378,7 @@ def _set_cv(board, effects, warm, u, z, settings, failures):
                       settings)  # fmt: skip
     if fitted is None:
         return cross_validated_rmse(model, u, z, settings), fitted
-    directions = _undetermined_directions(fitted, u, z)
-    held = held_parameters(directions, model, effects, fitted.parameters_)
+    held, _ = _held_on_fit(model, fitted, u, z, effects)
     start = holding(warm_physics(model, fitted), held)
     return cross_validated_rmse(start, u, z, settings), fitted
 
@@ -798,15 +797,21 @@ def _select_effects(
     return board.ordered(chosen), trail, singles, warm, fits
 
 
-def _on_board(board, effect) -> bool:
-    """Whether ``effect`` is one of ``board``'s."""
-    return bool(board.ordered((effect,)))
-
-
 def _with_richer(effects) -> list:
     """``effects`` with each one's richer variant (:meth:`~sk_offwhite.Effect.richer`)
     right after it: the sets the refinement may reach."""
-    return [variant for effect in effects for variant in (effect, effect.richer()) if variant]
+    pairs = ((effect, effect.richer()) for effect in effects)
+    return [variant for pair in pairs for variant in pair if variant is not None]
+
+
+class _Chosen(NamedTuple):
+    """A set the refinement starts a round from: its effects, their parameters, its CV
+    RMSE and its :func:`_quick_fit` (``None``: not made yet)."""
+
+    effects: tuple
+    params: dict
+    cv: float
+    fit: tuple | None = None
 
 
 def _swap(board, ranked, chosen, u, z, settings, failures, fits):
@@ -816,54 +821,52 @@ def _swap(board, ranked, chosen, u, z, settings, failures, fits):
     effects, the second refines it into the cubic one). Every kept move lowers the CV
     RMSE by ``min_gain`` or makes the set smaller, so the rounds end.
 
-    Returns the effects, their parameters and the CV trail rows of the moves tried (their
-    fits on the whole record are added to ``fits``).
+    ``chosen``: ``(effects, parameters, CV RMSE)`` of the set (a :class:`_Chosen`). Returns
+    the effects, their parameters and the CV trail rows of the moves tried (their fits on
+    the whole record are added to ``fits``).
     """
-    rows, left = [], set()
+    chosen, rows, left = _Chosen(*chosen), [], set()
     while True:
-        left.add(frozenset(chosen[0]))
-        reached = _swap_round(board, ranked, chosen, u, z, settings, failures, fits)
-        rows += reached[4]
-        if reached[0] is chosen[0] or frozenset(reached[0]) in left:
-            return chosen[0], chosen[1], rows
-        chosen = reached[:4]
+        left.add(frozenset(chosen.effects))
+        reached, tried = _swap_round(board, ranked, chosen, u, z, settings, failures, fits)
+        rows += tried
+        if reached.effects is chosen.effects or frozenset(reached.effects) in left:
+            return chosen.effects, chosen.params, rows
+        chosen = reached
 
 
-def _swap_round(board, ranked, chosen, u, z, settings, failures, fits):
-    """One round of the stepwise refinement of the chosen set ``(effects, parameters, CV
-    RMSE[, its fit])`` (the fit, :func:`_quick_fit`'s, is made when not given): each
-    other candidate of the ``beam`` added to it (while it has fewer than ``max_effects``)
-    or exchanged for one of its effects, each of its effects exchanged for its richer
-    variant (:func:`_refinements`), and each of its effects dropped, started from the
-    set's parameters. An addition or
-    exchange whose fit lowers the estimation RMSE (by ``min_gain`` for an addition), and a
-    removal whose fit on the whole record misses the data by no more than the chosen
-    set's CV RMSE allows a lighter set (``tolerance``), are cross-validated, and the best is
-    kept when its CV RMSE is lower by ``min_gain``. The removal's bar rests on the error a
-    model makes on the data it was fitted to being an optimistic estimate of its held-out
-    error (measured on the Cascaded Tanks: the two removals the bar excludes had CV RMSEs
-    38 and 18 times the chosen set's, and took 7 of the loop's 31 s).
-    Greedy forward selection misses a set whose members help only in each other's
-    company, reached through another order (a nonlinear sensor that needs the levels an
-    overflow leaves). When no move improves, the best smaller set whose CV RMSE is within
-    ``tolerance`` is kept: an effect whose fitted parameters make it vanish, or that
-    another effect made redundant, is not carried into the final model.
+def _swap_round(board, ranked, chosen: _Chosen, u, z, settings, failures, fits):
+    """One round of the stepwise refinement of the chosen set: each other candidate of the
+    ``beam`` added to it (while it has fewer than ``max_effects``) or exchanged for one of
+    its effects, each of its effects exchanged for its richer variant
+    (:func:`_refinements`), and each of its effects dropped, started from the set's
+    parameters. An addition or exchange whose fit lowers the estimation RMSE (by
+    ``min_gain`` for an addition), and a removal whose fit on the whole record misses the
+    data by no more than the chosen set's CV RMSE allows a lighter set (``tolerance``), are
+    cross-validated, and the best is kept when its CV RMSE is lower by ``min_gain``. The
+    removal's bar rests on the error a model makes on the data it was fitted to being an
+    optimistic estimate of its held-out error (measured on the Cascaded Tanks: the two
+    removals the bar excludes had CV RMSEs 38 and 18 times the chosen set's, and took 7 of
+    the loop's 31 s). Greedy forward selection misses a set whose members help only in each
+    other's company, reached through another order (a nonlinear sensor that needs the levels
+    an overflow leaves). When no move improves, the best smaller set whose CV RMSE is within
+    ``tolerance`` is kept: an effect whose fitted parameters make it vanish, or that another
+    effect made redundant, is not carried into the final model.
 
-    Returns the effects, their parameters, their CV RMSE, their fit and the CV trail rows
+    Returns the set reached (``chosen`` itself when no move is kept) and the CV trail rows
     of the moves tried (their fits on the whole record are added to ``fits``).
     """
-    effects, warm, cv = chosen[:3]
-    base = chosen[3] if len(chosen) > 3 else _attempt(
-        failures, "effects " + _label(effects), _quick_fit, board, effects, warm, u, z, settings
-    )  # fmt: skip
+    effects, warm, cv, base = chosen
     if base is None:
-        return effects, warm, cv, base, []
-    rows, best = [], (effects, warm, (1.0 - settings.min_gain) * cv, base)
-    lighter = (effects, warm, (1.0 + settings.tolerance) * cv, base)
+        base = _attempt(failures, "effects " + _label(effects), _quick_fit, board, effects,
+                        warm, u, z, settings)  # fmt: skip
+    if base is None:
+        return chosen, []
+    rows, best = [], _Chosen(effects, warm, (1.0 - settings.min_gain) * cv, base)
+    lighter = _Chosen(effects, warm, (1.0 + settings.tolerance) * cv, base)
     moves = []  # each to beat its bar and the earlier fit of its set, if any
-    known = partial(_on_board, board)
-    for trial, starts, bar in _moves(effects, warm, ranked, base[0], lighter[2], settings,
-                                     known):  # fmt: skip
+    for trial, starts, bar in _moves(effects, warm, ranked, base[0], lighter.cv, settings,
+                                     board):  # fmt: skip
         earlier = _earlier_rmse(fits, board, trial, u, z)
         if _worth_fitting(trial, effects, base[0], earlier):
             moves.append((trial, starts, min(bar, earlier)))
@@ -879,13 +882,13 @@ def _swap_round(board, ranked, chosen, u, z, settings, failures, fits):
     ):
         fits[label] = fit
         rows.append((label, score))
-        if score < best[2]:
-            best = (trial, params, score, quick)
-        elif len(trial) < len(effects) and score <= lighter[2]:
-            lighter = (trial, params, score, quick)
-    if best[0] is not effects:
-        return (*best, rows)
-    return (*lighter, rows) if lighter[0] is not effects else (effects, warm, cv, base, rows)
+        if score < best.cv:
+            best = _Chosen(trial, params, score, quick)
+        elif len(trial) < len(effects) and score <= lighter.cv:
+            lighter = _Chosen(trial, params, score, quick)
+    if best.effects is not effects:
+        return best, rows
+    return (lighter if lighter.effects is not effects else chosen), rows
 
 
 def _earlier_rmse(fits, board, effects, u, z) -> float:
@@ -909,17 +912,16 @@ def _worth_fitting(trial, effects, rmse: float, earlier: float) -> bool:
     return earlier == np.inf or (len(trial) > len(effects) and earlier > rmse)
 
 
-def _moves(effects, warm, ranked, rmse, lighter, settings, known):
+def _moves(effects, warm, ranked, rmse, lighter, settings, board):
     """``(effects, starts, RMSE to beat)`` of each addition and exchange of the beam's
     other named effects (see :func:`_starts`) and of each refinement
     (:func:`_refinements`), to beat the set's estimation RMSE ``rmse``, then of each
-    removal, to beat ``lighter`` (the bar of a smaller set); ``known(effect)`` says whether
-    an effect is on the board.
+    removal, to beat ``lighter`` (the bar of a smaller set).
     Promoted dictionary terms are left to forward selection, where they must beat a named
     effect by ``tolerance``: a term can always absorb a little more, and would take the
     place of the effect it resembles."""
     yield from _additions_and_exchanges(effects, warm, ranked, rmse, settings)
-    yield from _refinements(effects, warm, rmse, known)
+    yield from _refinements(effects, warm, rmse, board)
     if len(effects) > 1:
         for out in effects:
             kept = {n: p for n, p in warm.items() if n not in out.parameters()}
@@ -947,16 +949,16 @@ def _additions_and_exchanges(effects, warm, ranked, rmse, settings):
             yield (*rest, effect), _starts(kept, effect, params), rmse
 
 
-def _refinements(effects, warm, rmse, known):
+def _refinements(effects, warm, rmse, board):
     """``(effects, starts, RMSE to beat)`` with one effect exchanged for its richer
     variant, started where it reproduces the effect (:meth:`~sk_offwhite.Effect.richer`,
     :meth:`~sk_offwhite.Effect.richer_start`): the variant nests the effect, so its fit
     on the record can only match or lower ``rmse``, and the cross-validation decides
-    whether the extra freedom is worth ``min_gain``. Only the variants ``known`` to the
-    board (:func:`_with_richer`: one step richer than each proposed effect)."""
+    whether the extra freedom is worth ``min_gain``. Only the variants on the ``board``
+    (:func:`_with_richer`: one step richer than each proposed effect)."""
     for effect in effects:
         richer = effect.richer()
-        if richer is None or not known(richer):
+        if richer is None or not board.ordered((richer,)):
             continue
         rest = tuple(e for e in effects if e != effect)
         kept = {n: p for n, p in warm.items() if n not in effect.parameters()}
@@ -1142,14 +1144,16 @@ HOLD_SLACK = 1e-3
 direction may show (holding it there leaves the fit as it was, up to rounding)."""
 
 
-def _undetermined_directions(est: GreyBoxSparseRegressor, u, z) -> tuple:
-    """The directions of ``est``'s fit the data do not determine
-    (:func:`~sk_offwhite.loop._gauge.undetermined_directions`); none when they cannot be
-    computed."""
+def _held_on_fit(physics, est: GreyBoxSparseRegressor, u, z, effects) -> tuple[dict, tuple]:
+    """``(held, directions)``: the directions of ``est``'s fit (of ``physics``, ``effects``
+    added) the data do not determine (:func:`~sk_offwhite.loop._gauge.undetermined_directions`;
+    none when they cannot be computed) and ``{name: fitted value}`` of the parameter held
+    on each (:func:`~sk_offwhite.loop._gauge.held_parameters`)."""
     try:
-        return fit_undetermined_directions(est, u, z)
+        directions = fit_undetermined_directions(est, u, z)
     except FIT_ERRORS:
-        return ()
+        directions = ()
+    return held_parameters(directions, physics, effects, est.parameters_), directions
 
 
 def hold_undetermined_directions(
@@ -1195,35 +1199,23 @@ def hold_undetermined_directions(
     """
     settings = settings or LoopSettings()
     effects = getattr(physics, "effects", ()) if effects is None else effects
-    found = _held_fit(physics, est, u, z, effects, settings, failures)
-    if found is None:
+    held, directions = _held_on_fit(physics, est, u, z, effects)
+    if not held:
         return physics, est, cv, None
-    held_physics, refit, held, directions, rmse = found
+    held_physics = holding(warm_physics(physics, est), held)
+    refit = _attempt([] if failures is None else failures, "undetermined directions held", _fit_set,
+                     _estimator(held_physics, settings), effects, u, z, settings)  # fmt: skip
+    if refit is None:
+        return physics, est, cv, None
+    rmse = (_rmse(est.predict(u), z), _rmse(refit.predict(u), z))
+    if rmse[1] > (1.0 + HOLD_SLACK) * rmse[0]:
+        return physics, est, cv, None
     if cv is None:
         cv = cross_validated_rmse(warm_physics(physics, est), u, z, settings)
     held_cv = cross_validated_rmse(warm_physics(held_physics, refit), u, z, settings)
     if held_cv > (1.0 + settings.tolerance) * cv:
         return physics, est, cv, None
     return held_physics, refit, held_cv, held_note(held, directions, rmse, (cv, held_cv))
-
-
-def _held_fit(physics, est, u, z, effects, settings, failures):
-    """``(held physics, its fit, held parameters, directions, (RMSE, held RMSE))`` of
-    :func:`hold_undetermined_directions` before its CV; ``None`` when nothing is held, the
-    refit failed or its estimation RMSE rose by more than :data:`HOLD_SLACK`."""
-    directions = _undetermined_directions(est, u, z)
-    held = held_parameters(directions, physics, effects, est.parameters_)
-    if not held:
-        return None
-    held_physics = holding(warm_physics(physics, est), held)
-    refit = _attempt([] if failures is None else failures, "undetermined directions held", _fit_set,
-                     _estimator(held_physics, settings), effects, u, z, settings)  # fmt: skip
-    if refit is None:
-        return None
-    rmse = (_rmse(est.predict(u), z), _rmse(refit.predict(u), z))
-    if rmse[1] > (1.0 + HOLD_SLACK) * rmse[0]:
-        return None
-    return held_physics, refit, held, directions, rmse
 
 
 def _holding_as(template, fitted):
