@@ -85,6 +85,13 @@ def test_adding_the_effect_cuts_validation_and_parameter_errors(leaky):
     np.testing.assert_allclose(result.final.parameters_["leak_x_rate"], 0.05, rtol=0.05)
 
 
+def test_the_final_model_is_the_selections_fit_of_the_chosen_set(leaky):
+    _, result = leaky
+    selected = result.set_fits["leak_x"]
+    assert result.final is selected  # a model of its own from the same start: not refitted
+    assert result.cv_errors["final"] == dict(result.selection)["leak_x"]
+
+
 def test_report_is_written_with_figures(leaky, tmp_path):
     data, result = leaky
     records = {"estimation": (data.u, data.z), "validation": (data.u_val, data.z_val)}

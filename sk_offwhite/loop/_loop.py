@@ -1158,7 +1158,7 @@ def _held_on_fit(physics, est: GreyBoxSparseRegressor, u, z, effects) -> tuple[d
 
 def hold_undetermined_directions(
     physics, est: GreyBoxSparseRegressor, u, z, *, effects=None, settings=None, cv=None,
-    failures=None,
+    failures=None, held_cv=None,
 ):  # fmt: skip
     r"""Hold a parameter on each direction of an augmented physics' fit that the data do
     not determine.
@@ -1190,6 +1190,10 @@ def hold_undetermined_directions(
         The CV RMSE of ``physics`` as fitted (computed when ``None`` and needed).
     failures : list, default=None
         Where a failed refit is recorded (a line), as the loop records its fits'.
+    held_cv : float, default=None
+        The CV RMSE of ``physics`` with the parameters held (computed when ``None``): the
+        loop's trail holds it, each effect set being cross-validated so
+        (:func:`close_the_loop`).
 
     Returns
     -------
@@ -1212,7 +1216,8 @@ def hold_undetermined_directions(
         return physics, est, cv, None
     if cv is None:
         cv = cross_validated_rmse(warm_physics(physics, est), u, z, settings)
-    held_cv = cross_validated_rmse(warm_physics(held_physics, refit), u, z, settings)
+    if held_cv is None:
+        held_cv = cross_validated_rmse(warm_physics(held_physics, refit), u, z, settings)
     if held_cv > (1.0 + settings.tolerance) * cv:
         return physics, est, cv, None
     return held_physics, refit, held_cv, held_note(held, directions, rmse, (cv, held_cv))
@@ -1301,15 +1306,13 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
         notes += _equivalents(effects, singles, settings.tolerance)
     with _stage(clock, MODEL_LABELS["final"], settings):
         augmented = augment(start, *effects).with_parameters(**warm)
-        final = _attempt(
-            failures, "augmented physics", _fit_set, _estimator(augmented, settings), effects,
-            u, z, settings,
-        ) or baseline  # fmt: skip
+        final = _final_fit(augmented, effects, set_fits, u, z, settings, failures) or baseline
         final_cv = dict(trail).get(_label(effects), declared_cv)
         if effects and final is not baseline:  # the note gives the CV RMSE free and held
             augmented, final, cv, note = hold_undetermined_directions(
-                augmented, final, u, z, effects=effects, settings=settings, failures=failures
-            )
+                augmented, final, u, z, effects=effects, settings=settings, failures=failures,
+                held_cv=final_cv,
+            )  # fmt: skip
             final_cv, notes = (final_cv if cv is None else cv), notes + ([note] if note else [])
     fits["final"] = (final, None, final_cv)
     fitted_augmented = warm_physics(augmented, final)
@@ -1353,6 +1356,18 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
         models.get("final_with_output_delta"),
         paths.get("final_with_output_delta"),
     )
+
+
+def _final_fit(augmented, effects, set_fits: dict, u, z, settings, failures):
+    """The fit of the chosen effects' ``augmented`` physics on the whole record: the one
+    the selection made of that set when it fitted it on a model of its own (the same
+    model from the same start, so the same fit), else fitted now (``None`` when that
+    fails, with a line in ``failures``)."""
+    selected = set_fits.get(_label(effects))
+    if selected is not None and not settings.share_programs:
+        return selected
+    return _attempt(failures, "augmented physics", _fit_set, _estimator(augmented, settings),
+                    effects, u, z, settings)  # fmt: skip
 
 
 def _equivalents(effects, singles, tolerance: float) -> list[str]:
