@@ -40,6 +40,7 @@ from sk_offwhite import (
     Leak,
     Overflow,
     Parameter,
+    PowerDrag,
     QuadraticDrag,
     SensorCalibration,
     SensorStep,
@@ -85,6 +86,12 @@ def _cubic_sensor(**kwargs):
     return make_nonlinear_sensor_tank(cubic=0.004, **kwargs)
 
 
+def _power_drag(**kwargs):
+    """The pendulum whose drag grows with the power 1.5 of its rate: the loop's quadratic
+    drag must be refined into the drag of fitted exponent."""
+    return make_pendulum_drag(exponent=1.5, **kwargs)
+
+
 # name: (generator, short length, effect kind, (fitted parameter, rates key) or None)
 SYSTEMS = {
     "drive": (make_coulomb_drive, 2000, Friction, ("friction_v_coulomb", "coulomb")),
@@ -94,6 +101,12 @@ SYSTEMS = {
         1500,
         QuadraticDrag,
         ("drag_omega_coefficient", "quadratic_drag"),
+    ),
+    "power_drag": (
+        _power_drag,
+        1500,
+        PowerDrag,
+        ("drag_omega_power_exponent", "exponent"),
     ),
     "dead_zone": (make_dead_zone_motor, 800, DeadZone, ("dead_zone_u_width", "dead_zone")),
     "backlash": (make_backlash_servo, 1000, Backlash, ("backlash_u_width", "backlash")),

@@ -41,6 +41,7 @@ __all__ = [
     "OutputOffset",
     "OutputSaturation",
     "Overflow",
+    "PowerDrag",
     "QuadraticDrag",
     "RelaxedLaw",
     "SensorCalibration",
@@ -753,11 +754,18 @@ class Stiffness(AdditiveEffect):
 class QuadraticDrag(AdditiveEffect):
     r"""Drag growing with the square of a velocity: :math:`g = -c\, v|v|`, :math:`v = x_s`.
 
-    Parameter ``{name}_coefficient`` (:math:`c \ge 0`).
+    Parameter ``{name}_coefficient`` (:math:`c \ge 0`). ``reference`` (:math:`v_r > 0`, in
+    the velocity's units; the loop takes the velocity's RMS on the record) is the scale at
+    which the richer variant, :class:`PowerDrag`, keeps :math:`c`'s meaning.
     """
 
-    def __init__(self, state: int, *, coefficient: float = 0.0, name: str = "drag"):
+    def __init__(
+        self, state: int, *, coefficient: float = 0.0, reference: float = 1.0, name="drag"
+    ):
+        if not (np.isfinite(reference) and reference > 0):
+            raise ValueError(f"reference must be finite and positive, got {reference!r}.")
         self.state, self.coefficient, self.name = int(state), float(coefficient), name
+        self.reference = float(reference)
 
     def parameters(self) -> dict[str, Parameter]:
         return {f"{self.name}_coefficient": Parameter(self.coefficient, (0.0, None))}
@@ -772,6 +780,89 @@ class QuadraticDrag(AdditiveEffect):
 
     def describe(self, state_names, output_names, values=None) -> str:
         return f"{state_names[self.state]} is braked by a drag in its square"
+
+    @property
+    def mechanism(self) -> str:
+        """The drag on state ``state``, whatever its law (a set holds one)."""
+        return f"drag of state {self.state}"
+
+    def richer(self) -> PowerDrag:
+        """The drag of fitted exponent (:class:`PowerDrag`, named ``{name}_power``) on the
+        same reference velocity."""
+        return PowerDrag(self.state, reference=self.reference, name=f"{self.name}_power")
+
+    def richer_start(self, values: dict) -> dict:
+        """The coefficient carried over, the exponent at 2: the quadratic drag itself."""
+        richer = self.richer()
+        coefficient = values[f"{self.name}_coefficient"]
+        return {**richer.parameters(), f"{richer.name}_coefficient": coefficient}
+
+
+class PowerDrag(QuadraticDrag):
+    r"""Drag growing with a fitted power of a velocity:
+
+    .. math::
+
+        g = -c\, v|v| \left(\frac{|v|}{v_r}\right)^{a - 2}
+          = -c\, v_r^{2 - a}\, \mathrm{sign}(v) |v|^{a},
+
+    :math:`v = x_s`. Parameters ``{name}_coefficient`` (:math:`c \ge 0`, in the units of
+    :class:`QuadraticDrag`'s) and ``{name}_exponent`` (:math:`a`, in :data:`EXPONENT_BOUNDS`,
+    starting at ``exponent``). At :math:`a = 2` it is the quadratic drag; :math:`a = 1` a
+    viscous one; between them the drag of a flow neither laminar nor turbulent. The fixed
+    reference velocity :math:`v_r` (the loop takes the velocity's RMS) makes :math:`c` the
+    drag's size at a typical speed whatever :math:`a`, so the fit of :math:`a` does not
+    trade off against :math:`c` through the units of :math:`v`.
+    """
+
+    EXPONENT_BOUNDS = (1.0, 3.0)
+
+    def __init__(
+        self,
+        state: int,
+        *,
+        coefficient: float = 0.0,
+        exponent: float = 2.0,
+        reference: float = 1.0,
+        name: str = "drag_power",
+    ):
+        super().__init__(state, coefficient=coefficient, reference=reference, name=name)
+        lower, upper = self.EXPONENT_BOUNDS
+        if not lower <= exponent <= upper:
+            raise ValueError(f"exponent must lie in [{lower}, {upper}], got {exponent!r}.")
+        self.exponent = float(exponent)
+
+    def parameters(self) -> dict[str, Parameter]:
+        return {
+            **super().parameters(),
+            f"{self.name}_exponent": Parameter(self.exponent, self.EXPONENT_BOUNDS),
+        }
+
+    def term(self, x, u, theta):
+        v = x[self.state]
+        ratio = jnp.abs(v) / self.reference
+        moving = ratio > 0
+        # at rest the term is zero: the power of a zero ratio is left out, so that no
+        # log(0) reaches the exponent's derivative
+        safe_ratio = jnp.where(moving, ratio, 1.0)
+        power = jnp.where(moving, safe_ratio ** (theta[f"{self.name}_exponent"] - 2.0), 0.0)
+        return -theta[f"{self.name}_coefficient"] * v * jnp.abs(v) * power
+
+    def basis(self, x, u):
+        v = x[:, self.state]
+        return -v * np.abs(v) * (np.abs(v) / self.reference) ** (self.exponent - 2.0)
+
+    def describe(self, state_names, output_names, values=None) -> str:
+        exponent = (values or {}).get(f"{self.name}_exponent", self.exponent)
+        return f"{state_names[self.state]} is braked by a drag in its power {float(exponent):.3g}"
+
+    def richer(self) -> None:
+        """None: the exponent is already free."""
+        return None
+
+    def richer_start(self, values: dict) -> dict:
+        """Empty: there is no richer variant."""
+        return {}
 
 
 class DeadZone(Effect):

@@ -1,14 +1,15 @@
 """The loop's refinement of a chosen effect into its richer variant (a calibration of one
-degree more)."""
+degree more, a drag of fitted exponent)."""
 
 import warnings
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sk_offwhite import Leak, SensorCalibration
-from sk_offwhite.datasets import make_nonlinear_sensor_tank, sensor_reading
+from sk_offwhite import Leak, PowerDrag, QuadraticDrag, SensorCalibration
+from sk_offwhite.datasets import make_nonlinear_sensor_tank, make_pendulum_drag, sensor_reading
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 from sk_offwhite.loop._loop import _refinements, _with_richer
 from sk_offwhite.loop._switchboard import effect_sets
@@ -92,3 +93,64 @@ def test_the_cubic_sensor_reads_its_characteristic_and_refuses_a_non_finite_coef
     np.testing.assert_array_equal(plain.x, data.x)
     with pytest.raises(ValueError, match="cubic"):
         make_nonlinear_sensor_tank(n_samples=50, cubic=np.nan)
+
+
+DRAG = QuadraticDrag(1, reference=2.0, name="drag_omega")
+
+
+def _drag_term(effect, v, theta):
+    return float(effect.term(jnp.array([0.0, v]), None, theta))
+
+
+def test_the_richer_drag_has_a_fitted_exponent_on_the_same_reference_and_mechanism():
+    richer = DRAG.richer()
+    assert isinstance(richer, PowerDrag) and richer.name == "drag_omega_power"
+    assert (richer.state, richer.reference, richer.mechanism) == (1, 2.0, DRAG.mechanism)
+    assert richer.richer() is None and richer.richer_start({}) == {}
+    start = DRAG.richer_start({"drag_omega_coefficient": 0.7})
+    assert start["drag_omega_power_exponent"].value == 2.0
+    theta = {k: getattr(v, "value", v) for k, v in start.items()}
+    for v in (-3.0, -0.2, 0.0, 0.5, 4.0):  # the quadratic drag itself
+        assert _drag_term(richer, v, theta) == pytest.approx(
+            _drag_term(DRAG, v, {"drag_omega_coefficient": 0.7})
+        )
+
+
+def test_the_power_drag_follows_its_law_and_has_finite_derivatives_at_rest():
+    drag = PowerDrag(0, reference=2.0, name="d")
+    theta = {"d_coefficient": 0.5, "d_exponent": 1.5}
+    expected = -0.5 * 2.0**0.5 * np.sign(-3.0) * 3.0**1.5
+    assert _drag_term(PowerDrag(1, reference=2.0, name="d"), -3.0, theta) == pytest.approx(expected)
+    gradient = jax.grad(lambda v, a: drag.term(jnp.stack([v]), None, {**theta, "d_exponent": a}),
+                        argnums=(0, 1))(0.0, 1.5)  # fmt: skip
+    assert all(np.isfinite(float(g)) for g in gradient)
+    with pytest.raises(ValueError, match="exponent"):
+        PowerDrag(0, exponent=0.5)
+    with pytest.raises(ValueError, match="reference"):
+        QuadraticDrag(0, reference=0.0)
+
+
+@pytest.mark.parametrize("factor", [1e-3, 1.0, 250.0])
+def test_the_power_drags_coefficient_converts_with_the_velocitys_units_alone(factor):
+    """In units where v reads ``factor`` times larger (the reference with it), the term
+    (a rate of v) reads ``factor`` times larger with the coefficient divided by ``factor``,
+    whatever the exponent: the fit of the exponent does not trade off with the units."""
+    for exponent in (1.2, 2.0, 2.7):
+        theta = {"d_coefficient": 0.5, "d_exponent": exponent}
+        scaled = {"d_coefficient": 0.5 / factor, "d_exponent": exponent}
+        base = _drag_term(PowerDrag(1, reference=2.0, name="d"), -1.3, theta)
+        other = _drag_term(PowerDrag(1, reference=2.0 * factor, name="d"), -1.3 * factor, scaled)
+        assert other == pytest.approx(factor * base, rel=1e-5)  # float32 terms
+
+
+def test_the_pendulums_drag_of_another_power_and_its_checks():
+    quadratic = make_pendulum_drag(n_samples=300, random_state=0)
+    power = make_pendulum_drag(n_samples=300, random_state=0, exponent=1.5)
+    assert power.hidden_effect["rates"] == {"quadratic_drag": 0.3, "exponent": 1.5}
+    assert "exponent" not in quadratic.hidden_effect["rates"]
+    x = np.array([[0.1, -2.0]])
+    drag = power.hidden_effect["state_function"](x, np.zeros((1, 1)))
+    assert drag[0, 1] == pytest.approx(0.005 * 0.3 * 2.0**1.5)
+    assert not np.allclose(power.z, quadratic.z)
+    with pytest.raises(ValueError, match="exponent"):
+        make_pendulum_drag(n_samples=300, exponent=0.9)

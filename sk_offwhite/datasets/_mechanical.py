@@ -18,7 +18,7 @@ measured output is the first state plus Gaussian noise. All quantities are in SI
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import jax.numpy as jnp
 import numpy as np
@@ -346,9 +346,11 @@ def pendulum_rhs(x, u, theta):
     return jnp.stack([x[1], accel])
 
 
-def _quadratic_drag_effect(x, u, cd, dt):
-    """``[0, -dt cd omega |omega|]`` (numpy)."""
-    drag = -dt * cd * _signed_square(x[..., 1])
+def _quadratic_drag_effect(x, u, cd, dt, exponent=2.0):
+    """``[0, -dt cd omega |omega|^(exponent - 1)]`` (numpy)."""
+    omega = x[..., 1]
+    power = _signed_square(omega) if exponent == 2.0 else np.sign(omega) * np.abs(omega) ** exponent
+    drag = -dt * cd * power
     return np.stack([np.zeros_like(drag), drag], axis=-1)
 
 
@@ -398,6 +400,7 @@ def make_pendulum_drag(
     random_state=None,
     *,
     process_noise_std: float = 0.0,
+    exponent: float = 2.0,
 ) -> Bunch:
     """Driven pendulum whose physics misses quadratic (aerodynamic) drag.
 
@@ -435,6 +438,11 @@ def make_pendulum_drag(
         Seed of the input and noise realisations.
     process_noise_std : float, default=0.0
         Standard deviation (rad/s) of a Gaussian disturbance added to the rate update.
+    exponent : float, default=2.0
+        :math:`a` of a drag :math:`-c_d\\, \\omega |\\omega|^{a - 1}` (:math:`c_d = 0.3`
+        in rad\\ :sup:`1-a` s\\ :sup:`a-2`): 2 is the quadratic drag; between 1 and 2 a drag
+        the quadratic law only approximates (the loop must refine its quadratic drag into
+        :class:`~sk_offwhite.PowerDrag`). ``hidden_effect["rates"]`` then also holds ``"exponent"``.
 
     Returns
     -------
@@ -442,7 +450,30 @@ def make_pendulum_drag(
         ``u, z, u_val, z_val, x, x_val, physics, true_parameters, true_x0, true_x0_val,
         hidden_effect, suggested_library, noise, sampling_time, kinds, DESCR``.
     """
-    return _generate(_PENDULUM, n_samples, noise_std, random_state, process_noise_std)
+    return _generate(_pendulum(exponent), n_samples, noise_std, random_state, process_noise_std)
+
+
+def _pendulum(exponent: float) -> _Generator:
+    """The pendulum's generator with a drag of power ``exponent`` (2: :data:`_PENDULUM`)."""
+    exponent = float(exponent)
+    if not 1.0 <= exponent <= 3.0:
+        raise ValueError(f"exponent must lie in [1, 3], got {exponent!r}.")
+    if exponent == 2.0:
+        return _PENDULUM
+    law = f"-cd omega |omega|^{exponent - 1:g}"
+    system = replace(
+        _PENDULUM.system,
+        params={**_PENDULUM.system.params, "exponent": exponent},
+        effect_description=f"Drag {law} (cd = {PENDULUM_CD}) opposing the angular rate "
+        "(rate equation).",
+        descr=_PENDULUM.system.descr.replace(
+            "cd theta'|theta'|", f"cd theta'|theta'|^{exponent - 1:g}"
+        )
+        .replace("quadratic\ndrag", "drag")
+        .replace("quadratic drag", f"drag of power {exponent:g}")
+        .replace(f"cd={PENDULUM_CD} 1/rad", f"cd={PENDULUM_CD}"),
+    )
+    return replace(_PENDULUM, system=system, rates={**_PENDULUM.rates, "exponent": exponent})
 
 
 # --------------------------------------------------------------------------------------

@@ -177,11 +177,14 @@ def _mechanical(hypothesis, states, names, kinds: Kinds) -> list[Candidate]:
     )
     if kind not in VELOCITY_KINDS and not generic_velocity:
         return []
-    width = 0.01 * float(np.sqrt(np.mean(states[:, i] ** 2)) or 1.0)
+    rms = float(np.sqrt(np.mean(states[:, i] ** 2)) or 1.0)
     why = hypothesis.sentence
+    drag = QuadraticDrag(i, reference=rms, name=f"drag_{name}")
     out = [
-        Candidate(Friction(i, width=width, name=f"friction_{name}"), f"{why} A Coulomb friction."),
-        Candidate(QuadraticDrag(i, name=f"drag_{name}"), f"{why} A quadratic drag."),
+        Candidate(
+            Friction(i, width=0.01 * rms, name=f"friction_{name}"), f"{why} A Coulomb friction."
+        ),
+        Candidate(drag, f"{why} A quadratic drag."),
     ]
     position = kinds.partner.get(i)
     if position is not None:
