@@ -41,6 +41,7 @@ from sk_offwhite import (
     Overflow,
     Parameter,
     PowerDrag,
+    PowerStiffness,
     QuadraticDrag,
     SensorCalibration,
     SensorStep,
@@ -92,10 +93,22 @@ def _power_drag(**kwargs):
     return make_pendulum_drag(exponent=1.5, **kwargs)
 
 
+def _power_spring(**kwargs):
+    """The oscillator whose spring force grows with the power 2.5 of its deflection: the
+    loop's cubic stiffness must be refined into the spring of fitted exponent."""
+    return make_duffing_oscillator(exponent=2.5, **kwargs)
+
+
 # name: (generator, short length, effect kind, (fitted parameter, rates key) or None)
 SYSTEMS = {
     "drive": (make_coulomb_drive, 2000, Friction, ("friction_v_coulomb", "coulomb")),
     "duffing": (make_duffing_oscillator, 1500, Stiffness, ("stiffness_y_coefficient", "cubic")),
+    "power_spring": (
+        _power_spring,
+        1500,
+        PowerStiffness,
+        ("stiffness_y_power_exponent", "exponent"),
+    ),
     "pendulum": (
         make_pendulum_drag,
         1500,

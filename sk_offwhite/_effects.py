@@ -42,6 +42,7 @@ __all__ = [
     "OutputSaturation",
     "Overflow",
     "PowerDrag",
+    "PowerStiffness",
     "QuadraticDrag",
     "RelaxedLaw",
     "SensorCalibration",
@@ -718,20 +719,58 @@ class Bias(AdditiveEffect):
         return f"the {state_names[self.state]} equation has a constant term (an offset)"
 
 
+def signed_power(v, reference: float, base: int, exponent, xp=jnp):
+    r""":math:`v|v|^{b-1} (|v|/v_r)^{a-b}`, :math:`b` = ``base``, :math:`a` = ``exponent``,
+    :math:`v_r` = ``reference``: the signed power :math:`a` of :math:`v` whose size at
+    :math:`|v| = v_r` does not depend on :math:`a`, and which is :math:`v|v|^{b-1}` at
+    :math:`a = b`. Zero at :math:`v = 0`, where the power of the zero ratio is left out,
+    so that no :math:`\log 0` reaches the derivative in :math:`a` (``xp``: ``jax.numpy``,
+    or ``numpy`` for the basis)."""
+    ratio = xp.abs(v) / reference
+    moving = ratio > 0
+    safe_ratio = xp.where(moving, ratio, 1.0)
+    scale = xp.where(moving, safe_ratio ** (exponent - base), 0.0)
+    return v * xp.abs(v) ** (base - 1) * scale
+
+
+def _check_reference(reference: float) -> float:
+    if not (np.isfinite(reference) and reference > 0):
+        raise ValueError(f"reference must be finite and positive, got {reference!r}.")
+    return float(reference)
+
+
+def _check_exponent(exponent: float, bounds: tuple[float, float]) -> float:
+    lower, upper = bounds
+    if not lower <= exponent <= upper:
+        raise ValueError(f"exponent must lie in [{lower}, {upper}], got {exponent!r}.")
+    return float(exponent)
+
+
 class Stiffness(AdditiveEffect):
     r"""A polynomial restoring term: :math:`g = -k\, q |q|^{p-1}` with :math:`q = x_{position}`.
 
     ``power`` :math:`p \ge 2` (3: a hardening / softening cubic spring, :math:`k > 0`
-    hardens). Parameter ``{name}_coefficient`` (:math:`k`, either sign).
+    hardens). Parameter ``{name}_coefficient`` (:math:`k`, either sign). ``reference``
+    (:math:`q_r > 0`, in the position's units; the loop takes the position's RMS on the
+    record) is the scale at which the richer variant, :class:`PowerStiffness`, keeps
+    :math:`k`'s meaning.
     """
 
     def __init__(
-        self, state: int, position: int, *, power: int = 3, coefficient=0.0, name="stiffness"
+        self,
+        state: int,
+        position: int,
+        *,
+        power: int = 3,
+        coefficient: float = 0.0,
+        reference: float = 1.0,
+        name: str = "stiffness",
     ):
         if int(power) < 2:
             raise ValueError(f"power must be >= 2, got {power!r}.")
         self.state, self.position, self.power = int(state), int(position), int(power)
         self.coefficient, self.name = float(coefficient), name
+        self.reference = _check_reference(reference)
 
     def parameters(self) -> dict[str, Parameter]:
         return {f"{self.name}_coefficient": Parameter(self.coefficient)}
@@ -750,6 +789,97 @@ class Stiffness(AdditiveEffect):
             f"{state_names[self.position]}^{self.power} (a nonlinear stiffness)"
         )
 
+    @property
+    def mechanism(self) -> str:
+        """The nonlinear spring on ``position`` in ``state``'s equation, whatever its law."""
+        return f"stiffness of state {self.position} in state {self.state}"
+
+    def richer(self) -> PowerStiffness:
+        """The spring of fitted exponent (:class:`PowerStiffness`, named ``{name}_power``),
+        started at ``power``, on the same reference position."""
+        return PowerStiffness(
+            self.state, self.position, power=self.power, reference=self.reference,
+            name=f"{self.name}_power",
+        )  # fmt: skip
+
+    def richer_start(self, values: dict) -> dict:
+        """The coefficient carried over, the exponent at ``power``: this spring itself."""
+        richer = self.richer()
+        coefficient = values[f"{self.name}_coefficient"]
+        return {**richer.parameters(), f"{richer.name}_coefficient": coefficient}
+
+
+class PowerStiffness(Stiffness):
+    r"""A restoring term of fitted exponent:
+
+    .. math::
+
+        g = -k\, q|q|^{p-1} \left(\frac{|q|}{q_r}\right)^{a - p}
+          = -k\, q_r^{p - a}\, \mathrm{sign}(q) |q|^{a},
+
+    :math:`q = x_{position}`. Parameters ``{name}_coefficient`` (:math:`k`, either sign,
+    in the units of :class:`Stiffness`'s of power :math:`p`) and ``{name}_exponent``
+    (:math:`a` in :math:`[1, p + 2]`, starting at ``power``). At :math:`a = p` it
+    is the spring of power :math:`p`. The fixed reference position :math:`q_r` (the loop
+    takes the position's RMS) makes :math:`k` the term's size at a typical deflection
+    whatever :math:`a`, so the fit of :math:`a` does not trade off against :math:`k`
+    through the units of :math:`q`.
+    """
+
+    def __init__(
+        self,
+        state: int,
+        position: int,
+        *,
+        power: int = 3,
+        coefficient: float = 0.0,
+        exponent: float | None = None,
+        reference: float = 1.0,
+        name: str = "stiffness_power",
+    ):
+        super().__init__(
+            state, position, power=power, coefficient=coefficient, reference=reference,
+            name=name,
+        )  # fmt: skip
+        exponent = float(self.power) if exponent is None else exponent
+        self.exponent = _check_exponent(exponent, self.exponent_bounds)
+
+    @property
+    def exponent_bounds(self) -> tuple[float, float]:
+        """:math:`[1, p + 2]`: from a linear spring to two powers beyond the declared one."""
+        return (1.0, self.power + 2.0)
+
+    def parameters(self) -> dict[str, Parameter]:
+        return {
+            **super().parameters(),
+            f"{self.name}_exponent": Parameter(self.exponent, self.exponent_bounds),
+        }
+
+    def term(self, x, u, theta):
+        exponent = theta[f"{self.name}_exponent"]
+        power = signed_power(x[self.position], self.reference, self.power, exponent)
+        return -theta[f"{self.name}_coefficient"] * power
+
+    def basis(self, x, u):
+        q = x[:, self.position]
+        return -signed_power(q, self.reference, self.power, self.exponent, xp=np)
+
+    def describe(self, state_names, output_names, values=None) -> str:
+        exponent = (values or {}).get(f"{self.name}_exponent", self.exponent)
+        return (
+            f"the {state_names[self.state]} equation has a restoring term in "
+            f"{state_names[self.position]} to the power {float(exponent):.3g} (a nonlinear "
+            "stiffness)"
+        )
+
+    def richer(self) -> None:
+        """None: the exponent is already free."""
+        return None
+
+    def richer_start(self, values: dict) -> dict:
+        """Empty: there is no richer variant."""
+        return {}
+
 
 class QuadraticDrag(AdditiveEffect):
     r"""Drag growing with the square of a velocity: :math:`g = -c\, v|v|`, :math:`v = x_s`.
@@ -762,10 +892,8 @@ class QuadraticDrag(AdditiveEffect):
     def __init__(
         self, state: int, *, coefficient: float = 0.0, reference: float = 1.0, name="drag"
     ):
-        if not (np.isfinite(reference) and reference > 0):
-            raise ValueError(f"reference must be finite and positive, got {reference!r}.")
         self.state, self.coefficient, self.name = int(state), float(coefficient), name
-        self.reference = float(reference)
+        self.reference = _check_reference(reference)
 
     def parameters(self) -> dict[str, Parameter]:
         return {f"{self.name}_coefficient": Parameter(self.coefficient, (0.0, None))}
@@ -827,10 +955,7 @@ class PowerDrag(QuadraticDrag):
         name: str = "drag_power",
     ):
         super().__init__(state, coefficient=coefficient, reference=reference, name=name)
-        lower, upper = self.EXPONENT_BOUNDS
-        if not lower <= exponent <= upper:
-            raise ValueError(f"exponent must lie in [{lower}, {upper}], got {exponent!r}.")
-        self.exponent = float(exponent)
+        self.exponent = _check_exponent(exponent, self.EXPONENT_BOUNDS)
 
     def parameters(self) -> dict[str, Parameter]:
         return {
@@ -839,18 +964,11 @@ class PowerDrag(QuadraticDrag):
         }
 
     def term(self, x, u, theta):
-        v = x[self.state]
-        ratio = jnp.abs(v) / self.reference
-        moving = ratio > 0
-        # at rest the term is zero: the power of a zero ratio is left out, so that no
-        # log(0) reaches the exponent's derivative
-        safe_ratio = jnp.where(moving, ratio, 1.0)
-        power = jnp.where(moving, safe_ratio ** (theta[f"{self.name}_exponent"] - 2.0), 0.0)
-        return -theta[f"{self.name}_coefficient"] * v * jnp.abs(v) * power
+        power = signed_power(x[self.state], self.reference, 2, theta[f"{self.name}_exponent"])
+        return -theta[f"{self.name}_coefficient"] * power
 
     def basis(self, x, u):
-        v = x[:, self.state]
-        return -v * np.abs(v) * (np.abs(v) / self.reference) ** (self.exponent - 2.0)
+        return -signed_power(x[:, self.state], self.reference, 2, self.exponent, xp=np)
 
     def describe(self, state_names, output_names, values=None) -> str:
         exponent = (values or {}).get(f"{self.name}_exponent", self.exponent)

@@ -1,5 +1,5 @@
 """The loop's refinement of a chosen effect into its richer variant (a calibration of one
-degree more, a drag of fitted exponent)."""
+degree more, a drag or a spring of fitted exponent)."""
 
 import warnings
 
@@ -8,8 +8,20 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sk_offwhite import Leak, PowerDrag, QuadraticDrag, SensorCalibration
-from sk_offwhite.datasets import make_nonlinear_sensor_tank, make_pendulum_drag, sensor_reading
+from sk_offwhite import (
+    Leak,
+    PowerDrag,
+    PowerStiffness,
+    QuadraticDrag,
+    SensorCalibration,
+    Stiffness,
+)
+from sk_offwhite.datasets import (
+    make_duffing_oscillator,
+    make_nonlinear_sensor_tank,
+    make_pendulum_drag,
+    sensor_reading,
+)
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 from sk_offwhite.loop._loop import _refinements, _with_richer
 from sk_offwhite.loop._switchboard import effect_sets
@@ -154,3 +166,62 @@ def test_the_pendulums_drag_of_another_power_and_its_checks():
     assert not np.allclose(power.z, quadratic.z)
     with pytest.raises(ValueError, match="exponent"):
         make_pendulum_drag(n_samples=300, exponent=0.9)
+
+
+SPRING = Stiffness(1, 0, reference=0.5, name="stiffness_y")
+
+
+def _spring_term(effect, q, theta):
+    return float(effect.term(jnp.array([q, 0.0]), None, theta))
+
+
+def test_the_richer_spring_has_a_fitted_exponent_started_at_its_power():
+    richer = SPRING.richer()
+    assert isinstance(richer, PowerStiffness) and richer.name == "stiffness_y_power"
+    assert (richer.state, richer.position, richer.power) == (1, 0, 3)
+    assert (richer.reference, richer.mechanism) == (0.5, SPRING.mechanism)
+    assert richer.richer() is None and richer.richer_start({}) == {}
+    start = SPRING.richer_start({"stiffness_y_coefficient": -0.4})
+    assert start["stiffness_y_power_exponent"].value == 3.0
+    theta = {k: getattr(v, "value", v) for k, v in start.items()}
+    for q in (-1.5, -0.1, 0.0, 0.3, 2.0):  # the cubic spring itself
+        assert _spring_term(richer, q, theta) == pytest.approx(
+            _spring_term(SPRING, q, {"stiffness_y_coefficient": -0.4})
+        )
+
+
+def test_the_power_spring_follows_its_law_and_converts_with_the_positions_units():
+    theta = {"s_coefficient": 2.0, "s_exponent": 2.5}
+    spring = PowerStiffness(1, 0, reference=0.5, name="s")
+    expected = -2.0 * 0.5**0.5 * np.sign(-0.8) * 0.8**2.5
+    assert _spring_term(spring, -0.8, theta) == pytest.approx(expected, rel=1e-6)
+    for factor in (1e-3, 40.0):  # k converts by factor**(1 - power) whatever the exponent
+        other = PowerStiffness(1, 0, reference=0.5 * factor, name="s")
+        scaled = {**theta, "s_coefficient": 2.0 * factor ** (1 - 3)}
+        assert _spring_term(other, -0.8 * factor, scaled) == pytest.approx(
+            factor * _spring_term(spring, -0.8, theta), rel=1e-5
+        )
+    gradient = jax.grad(lambda q, a: spring.term(jnp.stack([q, 0.0]), None,
+                                                 {**theta, "s_exponent": a}),
+                        argnums=(0, 1))(0.0, 2.5)  # fmt: skip
+    assert all(np.isfinite(float(g)) for g in gradient)
+    at_rest = np.array([[0.0, 0.0], [-0.8, 0.0]])
+    basis = PowerStiffness(1, 0, exponent=2.5, reference=0.5, name="s").basis(at_rest, None)
+    np.testing.assert_allclose(basis, [0.0, expected / 2.0])  # the term at k = 1
+    with pytest.raises(ValueError, match="exponent"):
+        PowerStiffness(1, 0, exponent=5.5)  # beyond power + 2
+    with pytest.raises(ValueError, match="reference"):
+        Stiffness(1, 0, reference=-1.0)
+
+
+def test_the_oscillators_spring_of_another_power_and_its_checks():
+    cubic = make_duffing_oscillator(n_samples=300, random_state=0)
+    power = make_duffing_oscillator(n_samples=300, random_state=0, exponent=2.5)
+    assert power.hidden_effect["rates"] == {"cubic": 1.5, "exponent": 2.5}
+    assert "exponent" not in cubic.hidden_effect["rates"]
+    x = np.array([[-0.6, 0.1]])
+    force = power.hidden_effect["state_function"](x, np.zeros((1, 1)))
+    assert force[0, 1] == pytest.approx(0.02 * 1.5 * 0.6**2.5)
+    assert not np.allclose(power.z, cubic.z)
+    with pytest.raises(ValueError, match="exponent"):
+        make_duffing_oscillator(n_samples=300, exponent=5.5)

@@ -232,9 +232,11 @@ DUFFING_THETA = {"m": 1.0, "k": 1.0, "c": 0.2}
 DUFFING_K3, DUFFING_DT = 1.5, 0.02
 
 
-def _cubic_spring_effect(x, u, k3, m, dt):
-    """``[0, -dt k3 y^3 / m]`` (numpy)."""
-    force = -dt * k3 * x[..., 0] ** 3 / m
+def _cubic_spring_effect(x, u, k3, m, dt, exponent=3.0):
+    """``[0, -dt k3 y |y|^(exponent - 1) / m]`` (numpy; ``y^3`` for 3)."""
+    y = x[..., 0]
+    spring = y**3 if exponent == 3.0 else np.sign(y) * np.abs(y) ** exponent
+    force = -dt * k3 * spring / m
     return np.stack([np.zeros_like(force), force], axis=-1)
 
 
@@ -281,6 +283,7 @@ def make_duffing_oscillator(
     random_state=None,
     *,
     process_noise_std: float = 0.0,
+    exponent: float = 3.0,
 ) -> Bunch:
     """Oscillator whose physics is linear but whose spring hardens (Duffing oscillator).
 
@@ -317,6 +320,12 @@ def make_duffing_oscillator(
         Seed of the input and noise realisations.
     process_noise_std : float, default=0.0
         Standard deviation (m/s) of a Gaussian disturbance added to the velocity update.
+    exponent : float, default=3.0
+        :math:`a` of a spring force :math:`k_3\\, y |y|^{a - 1}` (:math:`k_3 = 1.5` in
+        N/m\\ :sup:`a`): 3 is the cubic spring; another power is one the cubic law only
+        approximates (the loop must refine its cubic stiffness into
+        :class:`~sk_offwhite.PowerStiffness`). ``hidden_effect["rates"]`` then also holds
+        ``"exponent"``.
 
     Returns
     -------
@@ -324,7 +333,25 @@ def make_duffing_oscillator(
         ``u, z, u_val, z_val, x, x_val, physics, true_parameters, true_x0, true_x0_val,
         hidden_effect, suggested_library, noise, sampling_time, kinds, DESCR``.
     """
-    return _generate(_DUFFING, n_samples, noise_std, random_state, process_noise_std)
+    return _generate(_duffing(exponent), n_samples, noise_std, random_state, process_noise_std)
+
+
+def _duffing(exponent: float) -> _Generator:
+    """The Duffing generator with a spring of power ``exponent`` (3: :data:`_DUFFING`)."""
+    exponent = float(exponent)
+    if not 1.0 <= exponent <= 5.0:
+        raise ValueError(f"exponent must lie in [1, 5], got {exponent!r}.")
+    if exponent == 3.0:
+        return _DUFFING
+    law = f"k3 y|y|^{exponent - 1:g}"
+    system = replace(
+        _DUFFING.system,
+        params={**_DUFFING.system.params, "exponent": exponent},
+        effect_description=f"Spring -{law} (k3 = {DUFFING_K3} N/m^{exponent:g}) in the "
+        "velocity equation, its power not cubic.",
+        descr=_DUFFING.system.descr.replace("k3 y^3", law).replace("N/m^3", f"N/m^{exponent:g}"),
+    )
+    return replace(_DUFFING, system=system, rates={**_DUFFING.rates, "exponent": exponent})
 
 
 # --------------------------------------------------------------------------------------

@@ -168,6 +168,11 @@ def _one_signed(column: np.ndarray) -> bool:
     return bool(np.all(column >= 0) or np.all(column <= 0))
 
 
+def _rms(column: np.ndarray) -> float:
+    """The root mean square of ``column`` (1 where it is 0: a scale for the effects)."""
+    return float(np.sqrt(np.mean(column**2)) or 1.0)
+
+
 def _mechanical(hypothesis, states, names, kinds: Kinds) -> list[Candidate]:
     """Friction, drag and a stiffness in a velocity's (or rate's) equation."""
     i, name = hypothesis.equation_index, hypothesis.equation
@@ -177,7 +182,7 @@ def _mechanical(hypothesis, states, names, kinds: Kinds) -> list[Candidate]:
     )
     if kind not in VELOCITY_KINDS and not generic_velocity:
         return []
-    rms = float(np.sqrt(np.mean(states[:, i] ** 2)) or 1.0)
+    rms = _rms(states[:, i])
     why = hypothesis.sentence
     drag = QuadraticDrag(i, reference=rms, name=f"drag_{name}")
     out = [
@@ -190,7 +195,12 @@ def _mechanical(hypothesis, states, names, kinds: Kinds) -> list[Candidate]:
     if position is not None:
         out.append(
             Candidate(
-                Stiffness(i, position, name=f"stiffness_{names[position]}"),
+                Stiffness(
+                    i,
+                    position,
+                    reference=_rms(states[:, position]),
+                    name=f"stiffness_{names[position]}",
+                ),  # fmt: skip
                 f"{why} A cubic stiffness in {names[position]}.",
             )
         )
