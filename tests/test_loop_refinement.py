@@ -23,7 +23,7 @@ from sk_offwhite.datasets import (
     sensor_reading,
 )
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
-from sk_offwhite.loop._loop import _refinements, _with_richer
+from sk_offwhite.loop._loop import _refinements, _set_cv, _swap, _with_richer
 from sk_offwhite.loop._switchboard import effect_sets
 
 CALIBRATION = SensorCalibration(0, center=4.0, scale=2.0, name="sensor_x")
@@ -225,3 +225,22 @@ def test_the_oscillators_spring_of_another_power_and_its_checks():
     assert not np.allclose(power.z, cubic.z)
     with pytest.raises(ValueError, match="exponent"):
         make_duffing_oscillator(n_samples=300, exponent=5.5)
+
+
+def test_the_refinement_frees_the_exponent_of_a_spring_that_is_not_cubic():
+    """On the oscillator whose spring force goes with the power 2.5 of the deflection, the
+    cubic stiffness is exchanged for its richer variant, whose exponent comes back near
+    2.5, and which cross-validates better by far."""
+    data = make_duffing_oscillator(n_samples=1000, random_state=0, exponent=2.5)
+    settings = LoopSettings(n_folds=2, max_iter=100, fit_delta=False)
+    spring = Stiffness(1, 0, reference=float(np.sqrt(np.mean(data.z**2))), name="stiffness_y")
+    board = effect_sets(data.physics, _with_richer([spring]), shared=False)
+    failures, fits = [], {}
+    cv, _ = _set_cv(board, (spring,), {}, data.u, data.z, settings, failures)
+    kept, params, rows = _swap(board, [], ((spring,), {}, cv), data.u, data.z, settings,
+                               failures, fits)  # fmt: skip
+    assert kept == (spring.richer(),) and failures == []
+    assert [label for label, _ in rows] == ["stiffness_y_power"]
+    assert dict(rows)["stiffness_y_power"] < 0.7 * cv
+    exponent = fits["stiffness_y_power"].parameters_["stiffness_y_power_exponent"]
+    assert exponent == pytest.approx(2.5, abs=0.05)
