@@ -10,6 +10,7 @@ import pytest
 
 from sk_offwhite import (
     Leak,
+    Parameter,
     PowerDrag,
     PowerStiffness,
     QuadraticDrag,
@@ -227,20 +228,40 @@ def test_the_oscillators_spring_of_another_power_and_its_checks():
         make_duffing_oscillator(n_samples=300, exponent=5.5)
 
 
-def test_the_refinement_frees_the_exponent_of_a_spring_that_is_not_cubic():
+def _refined_spring(data, millimetres: bool):
+    """The cubic stiffness's refinement on ``data`` (in mm when ``millimetres``: the
+    positions and the physics' parameters converted); ``(kept, CV, trail rows, fits)``."""
+    scale = 1000.0 if millimetres else 1.0
+    z = data.z * scale
+    physics = data.physics.with_parameters(
+        **{name: Parameter(p.value / scale, (p.bounds[0] / scale, None))
+           for name, p in data.physics.parameters.items()}
+    )  # fmt: skip
+    settings = LoopSettings(n_folds=2, max_iter=100, fit_delta=False)
+    spring = Stiffness(1, 0, reference=float(np.sqrt(np.mean(z**2))), name="stiffness_y")
+    board = effect_sets(physics, _with_richer([spring]), shared=False)
+    failures, fits = [], {}
+    cv, _ = _set_cv(board, (spring,), {}, data.u, z, settings, failures)
+    kept, _, rows = _swap(board, [], ((spring,), {}, cv), data.u, z, settings, failures, fits)
+    assert failures == []
+    return kept, cv, dict(rows), fits["stiffness_y_power"].parameters_
+
+
+def test_the_refinement_frees_the_exponent_of_a_spring_that_is_not_cubic_in_any_units():
     """On the oscillator whose spring force goes with the power 2.5 of the deflection, the
     cubic stiffness is exchanged for its richer variant, whose exponent comes back near
-    2.5, and which cross-validates better by far."""
+    2.5, and which cross-validates better by far. In millimetres the same: the exponent
+    to rounding, the coefficient converted by 1000^(1 - 3), the CV errors by 1000."""
     data = make_duffing_oscillator(n_samples=1000, random_state=0, exponent=2.5)
-    settings = LoopSettings(n_folds=2, max_iter=100, fit_delta=False)
-    spring = Stiffness(1, 0, reference=float(np.sqrt(np.mean(data.z**2))), name="stiffness_y")
-    board = effect_sets(data.physics, _with_richer([spring]), shared=False)
-    failures, fits = [], {}
-    cv, _ = _set_cv(board, (spring,), {}, data.u, data.z, settings, failures)
-    kept, params, rows = _swap(board, [], ((spring,), {}, cv), data.u, data.z, settings,
-                               failures, fits)  # fmt: skip
-    assert kept == (spring.richer(),) and failures == []
-    assert [label for label, _ in rows] == ["stiffness_y_power"]
-    assert dict(rows)["stiffness_y_power"] < 0.7 * cv
-    exponent = fits["stiffness_y_power"].parameters_["stiffness_y_power_exponent"]
-    assert exponent == pytest.approx(2.5, abs=0.05)
+    kept, cv, rows, fitted = _refined_spring(data, millimetres=False)
+    assert kept == (Stiffness(1, 0, reference=kept[0].reference, name="stiffness_y").richer(),)
+    assert list(rows) == ["stiffness_y_power"] and rows["stiffness_y_power"] < 0.7 * cv
+    assert fitted["stiffness_y_power_exponent"] == pytest.approx(2.5, abs=0.05)
+    kept_mm, cv_mm, rows_mm, fitted_mm = _refined_spring(data, millimetres=True)
+    assert [e.name for e in kept_mm] == ["stiffness_y_power"]
+    assert (cv_mm, rows_mm["stiffness_y_power"]) == pytest.approx(
+        (1000.0 * cv, 1000.0 * rows["stiffness_y_power"]), rel=1e-6
+    )
+    exponent, coefficient = "stiffness_y_power_exponent", "stiffness_y_power_coefficient"
+    assert fitted_mm[exponent] == pytest.approx(fitted[exponent], rel=1e-6)
+    assert fitted_mm[coefficient] == pytest.approx(1e-6 * fitted[coefficient], rel=1e-6)

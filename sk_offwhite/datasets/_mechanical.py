@@ -469,7 +469,8 @@ def make_pendulum_drag(
         :math:`a` of a drag :math:`-c_d\\, \\omega |\\omega|^{a - 1}` (:math:`c_d = 0.3`
         in rad\\ :sup:`1-a` s\\ :sup:`a-2`): 2 is the quadratic drag; between 1 and 2 a drag
         the quadratic law only approximates (the loop must refine its quadratic drag into
-        :class:`~sk_offwhite.PowerDrag`). ``hidden_effect["rates"]`` then also holds ``"exponent"``.
+        :class:`~sk_offwhite.PowerDrag`). ``hidden_effect["rates"]`` then also holds
+        ``"exponent"``.
 
     Returns
     -------
@@ -496,7 +497,6 @@ def _pendulum(exponent: float) -> _Generator:
         descr=_PENDULUM.system.descr.replace(
             "cd theta'|theta'|", f"cd theta'|theta'|^{exponent - 1:g}"
         )
-        .replace("quadratic\ndrag", "drag")
         .replace("quadratic drag", f"drag of power {exponent:g}")
         .replace(f"cd={PENDULUM_CD} 1/rad", f"cd={PENDULUM_CD}"),
     )

@@ -182,28 +182,18 @@ def _mechanical(hypothesis, states, names, kinds: Kinds) -> list[Candidate]:
     )
     if kind not in VELOCITY_KINDS and not generic_velocity:
         return []
-    rms = _rms(states[:, i])
-    why = hypothesis.sentence
-    drag = QuadraticDrag(i, reference=rms, name=f"drag_{name}")
+    rms, why = _rms(states[:, i]), hypothesis.sentence
     out = [
         Candidate(
             Friction(i, width=0.01 * rms, name=f"friction_{name}"), f"{why} A Coulomb friction."
         ),
-        Candidate(drag, f"{why} A quadratic drag."),
+        Candidate(QuadraticDrag(i, reference=rms, name=f"drag_{name}"), f"{why} A quadratic drag."),
     ]
     position = kinds.partner.get(i)
     if position is not None:
-        out.append(
-            Candidate(
-                Stiffness(
-                    i,
-                    position,
-                    reference=_rms(states[:, position]),
-                    name=f"stiffness_{names[position]}",
-                ),  # fmt: skip
-                f"{why} A cubic stiffness in {names[position]}.",
-            )
-        )
+        partner, reference = names[position], _rms(states[:, position])
+        spring = Stiffness(i, position, reference=reference, name=f"stiffness_{partner}")
+        out.append(Candidate(spring, f"{why} A cubic stiffness in {partner}."))
     return out
 
 
