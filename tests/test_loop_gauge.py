@@ -185,6 +185,13 @@ def test_an_exact_symmetry_of_two_biases_is_broken_by_holding_one():
         )
     fixed = [n for n in ("bias_a_value", "bias_b_value") if held_physics.parameters[n].fixed]
     assert len(fixed) == 1 and fixed[0] in note and np.isfinite(held_cv)
+    with warnings.catch_warnings():  # a held CV already known (the loop's trail) is taken
+        warnings.simplefilter("ignore")
+        _, _, given, note = hold_undetermined_directions(
+            physics, final, data.u, data.z, effects=(first, second), settings=settings,
+            held_cv=held_cv * 1.001,
+        )  # fmt: skip
+    assert given == held_cv * 1.001 and f"{held_cv * 1.001:.4g}" in note
 
 
 def test_the_results_augmented_physics_holds_what_the_final_model_holds():
