@@ -338,20 +338,31 @@ def make_duffing_oscillator(
 
 def _duffing(exponent: float) -> _Generator:
     """The Duffing generator with a spring of power ``exponent`` (3: :data:`_DUFFING`)."""
+    law = f"k3 y|y|^{float(exponent) - 1:g}"
+    return _of_power(
+        _DUFFING, exponent, (1.0, 3.0, 5.0),
+        effect_description=f"Spring -{law} (k3 = {DUFFING_K3} N/m^{float(exponent):g}) in "
+        "the velocity equation, its power not cubic.",
+        descr=_DUFFING.system.descr.replace("k3 y^3", law).replace(
+            "N/m^3", f"N/m^{float(exponent):g}"
+        ),
+    )  # fmt: skip
+
+
+def _of_power(spec: _Generator, exponent, bounds: tuple, **described) -> _Generator:
+    """``spec`` whose hidden effect takes the power ``exponent`` (its contribution's
+    argument of that name), described anew (``described``: the system's
+    ``effect_description`` and ``descr``); ``spec`` itself at the default power.
+    ``bounds``: ``(lowest, default, highest)``."""
     exponent = float(exponent)
-    if not 1.0 <= exponent <= 5.0:
-        raise ValueError(f"exponent must lie in [1, 5], got {exponent!r}.")
-    if exponent == 3.0:
-        return _DUFFING
-    law = f"k3 y|y|^{exponent - 1:g}"
-    system = replace(
-        _DUFFING.system,
-        params={**_DUFFING.system.params, "exponent": exponent},
-        effect_description=f"Spring -{law} (k3 = {DUFFING_K3} N/m^{exponent:g}) in the "
-        "velocity equation, its power not cubic.",
-        descr=_DUFFING.system.descr.replace("k3 y^3", law).replace("N/m^3", f"N/m^{exponent:g}"),
-    )
-    return replace(_DUFFING, system=system, rates={**_DUFFING.rates, "exponent": exponent})
+    lowest, default, highest = bounds
+    if not lowest <= exponent <= highest:
+        raise ValueError(f"exponent must lie in [{lowest:g}, {highest:g}], got {exponent!r}.")
+    if exponent == default:
+        return spec
+    params = {**spec.system.params, "exponent": exponent}
+    system = replace(spec.system, params=params, **described)
+    return replace(spec, system=system, rates={**spec.rates, "exponent": exponent})
 
 
 # --------------------------------------------------------------------------------------
@@ -483,24 +494,18 @@ def make_pendulum_drag(
 
 def _pendulum(exponent: float) -> _Generator:
     """The pendulum's generator with a drag of power ``exponent`` (2: :data:`_PENDULUM`)."""
-    exponent = float(exponent)
-    if not 1.0 <= exponent <= 3.0:
-        raise ValueError(f"exponent must lie in [1, 3], got {exponent!r}.")
-    if exponent == 2.0:
-        return _PENDULUM
-    law = f"-cd omega |omega|^{exponent - 1:g}"
-    system = replace(
-        _PENDULUM.system,
-        params={**_PENDULUM.system.params, "exponent": exponent},
-        effect_description=f"Drag {law} (cd = {PENDULUM_CD}) opposing the angular rate "
-        "(rate equation).",
-        descr=_PENDULUM.system.descr.replace(
-            "cd theta'|theta'|", f"cd theta'|theta'|^{exponent - 1:g}"
-        )
-        .replace("quadratic drag", f"drag of power {exponent:g}")
-        .replace(f"cd={PENDULUM_CD} 1/rad", f"cd={PENDULUM_CD}"),
+    power = f"{float(exponent) - 1:g}"
+    descr = (
+        _PENDULUM.system.descr.replace("cd theta'|theta'|", f"cd theta'|theta'|^{power}")
+        .replace("quadratic drag", f"drag of power {float(exponent):g}")
+        .replace(f"cd={PENDULUM_CD} 1/rad", f"cd={PENDULUM_CD}")
     )
-    return replace(_PENDULUM, system=system, rates={**_PENDULUM.rates, "exponent": exponent})
+    return _of_power(
+        _PENDULUM, exponent, (1.0, 2.0, 3.0),
+        effect_description=f"Drag -cd omega |omega|^{power} (cd = {PENDULUM_CD}) opposing "
+        "the angular rate (rate equation).",
+        descr=descr,
+    )  # fmt: skip
 
 
 # --------------------------------------------------------------------------------------
