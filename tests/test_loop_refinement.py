@@ -137,6 +137,9 @@ def test_the_power_drag_follows_its_law_and_has_finite_derivatives_at_rest():
     gradient = jax.grad(lambda v, a: drag.term(jnp.stack([v]), None, {**theta, "d_exponent": a}),
                         argnums=(0, 1))(0.0, 1.5)  # fmt: skip
     assert all(np.isfinite(float(g)) for g in gradient)
+    names = ("theta", "omega")
+    assert "power 1.5" in drag.describe(names, ("theta",), {"d_exponent": 1.5})
+    assert "power 2" in drag.describe(names, ("theta",))  # the start, before a fit
     with pytest.raises(ValueError, match="exponent"):
         PowerDrag(0, exponent=0.5)
     with pytest.raises(ValueError, match="reference"):
@@ -209,6 +212,7 @@ def test_the_power_spring_follows_its_law_and_converts_with_the_positions_units(
     at_rest = np.array([[0.0, 0.0], [-0.8, 0.0]])
     basis = PowerStiffness(1, 0, exponent=2.5, reference=0.5, name="s").basis(at_rest, None)
     np.testing.assert_allclose(basis, [0.0, expected / 2.0])  # the term at k = 1
+    assert "y to the power 2.5" in spring.describe(("y", "v"), ("y",), {"s_exponent": 2.5})
     with pytest.raises(ValueError, match="exponent"):
         PowerStiffness(1, 0, exponent=5.5)  # beyond power + 2
     with pytest.raises(ValueError, match="reference"):
