@@ -99,6 +99,12 @@ def _power_spring(**kwargs):
     return make_duffing_oscillator(exponent=2.5, **kwargs)
 
 
+def _stribeck(**kwargs):
+    """The oscillator whose friction rises by 0.5 near rest (a Stribeck friction): the
+    loop's Coulomb friction must be refined into the Stribeck one."""
+    return make_friction_oscillator(stribeck=0.5, **kwargs)
+
+
 # name: (generator, short length, effect kind, (fitted parameter, rates key) or None)
 SYSTEMS = {
     "drive": (make_coulomb_drive, 2000, Friction, ("friction_v_coulomb", "coulomb")),
@@ -125,6 +131,7 @@ SYSTEMS = {
     "backlash": (make_backlash_servo, 1000, Backlash, ("backlash_u_width", "backlash")),
     "leaky_tank": (make_leaky_tank, 600, Leak, None),
     "friction": (make_friction_oscillator, 500, Friction, None),
+    "stribeck": (_stribeck, 500, Friction, ("friction_v_stribeck_stribeck", "stribeck")),
     "actuator": (make_saturating_actuator, 500, InputSaturation, None),
     "tanks": (_tanks, 500, Overflow, None),
     "sensor": (make_nonlinear_sensor_tank, 400, SensorCalibration, None),

@@ -1,5 +1,5 @@
 """The loop's refinement of a chosen effect into its richer variant (a calibration of one
-degree more, a drag or a spring of fitted exponent)."""
+degree more, a drag or a spring of fitted exponent, a Stribeck friction)."""
 
 import warnings
 
@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from sk_offwhite import (
+    Friction,
     Leak,
     Parameter,
     PowerDrag,
@@ -19,6 +20,7 @@ from sk_offwhite import (
 )
 from sk_offwhite.datasets import (
     make_duffing_oscillator,
+    make_friction_oscillator,
     make_nonlinear_sensor_tank,
     make_pendulum_drag,
     sensor_reading,
@@ -269,3 +271,51 @@ def test_the_refinement_frees_the_exponent_of_a_spring_that_is_not_cubic_in_any_
     exponent, coefficient = "stiffness_y_power_exponent", "stiffness_y_power_coefficient"
     assert fitted_mm[exponent] == pytest.approx(fitted[exponent], rel=1e-6)
     assert fitted_mm[coefficient] == pytest.approx(1e-6 * fitted[coefficient], rel=1e-6)
+
+
+COULOMB = Friction(1, coulomb=0.2, width=0.02, name="friction_v")
+
+
+def _friction_term(effect, v, theta):
+    return float(effect.term(jnp.array([0.0, v]), None, theta))
+
+
+def test_the_richer_friction_adds_a_stribeck_level_and_velocity_both_fitted():
+    richer = COULOMB.richer()
+    assert richer.name == "friction_v_stribeck" and richer.mechanism == COULOMB.mechanism
+    assert richer.stribeck_velocity == pytest.approx(Friction.STRIBECK_START * 0.02)
+    assert richer.min_width == COULOMB.min_width and richer.richer() is None
+    params = richer.parameters()
+    assert params["friction_v_stribeck_stribeck"].value == 0.0
+    assert params["friction_v_stribeck_stribeck_velocity"].bounds == (COULOMB.min_width, None)
+    fitted = {"friction_v_coulomb": Parameter(0.35, (0.0, None)),
+              "friction_v_width": Parameter(0.03, (2e-4, None))}  # fmt: skip
+    start = COULOMB.richer_start({**COULOMB.parameters(), **fitted})
+    assert start["friction_v_stribeck_width"] == fitted["friction_v_width"]
+    theta = {k: p.value for k, p in start.items()}
+    values = {k: p.value for k, p in fitted.items()}
+    for v in (-2.0, -0.01, 0.0, 0.05, 1.5):  # the Coulomb friction itself
+        assert _friction_term(richer, v, theta) == pytest.approx(_friction_term(COULOMB, v, values))
+    stribeck = {**theta, "friction_v_stribeck_stribeck": 0.5}
+    near_rest = _friction_term(richer, 0.5, stribeck) - _friction_term(richer, 0.5, theta)
+    assert near_rest == pytest.approx(-0.5 * np.exp(-((0.5 / 1.0) ** 2)) * np.tanh(0.5 / 0.03))
+    sharp = {**fitted, "friction_v_width": Parameter(3e-4, (2e-4, None))}  # below its start
+    restarted = COULOMB.richer_start({**COULOMB.parameters(), **sharp})["friction_v_stribeck_width"]
+    assert restarted.value == 0.02 and restarted.bounds == (2e-4, None)
+    with pytest.raises(ValueError, match="stribeck_velocity"):
+        Friction(1, width=0.02, stribeck_velocity=1e-5)
+
+
+def test_the_stribeck_oscillator_and_its_checks():
+    coulomb = make_friction_oscillator(n_samples=300, random_state=0)
+    stribeck = make_friction_oscillator(n_samples=300, random_state=0, stribeck=0.5)
+    assert stribeck.hidden_effect["rates"] == {
+        "coulomb": 0.5, "stribeck": 0.5, "stribeck_velocity": 0.3
+    }  # fmt: skip
+    assert "rates" not in coulomb.hidden_effect
+    x = np.array([[0.0, 0.3]])
+    force = stribeck.hidden_effect["state_function"](x, np.zeros((1, 1)))
+    assert force[0, 1] == pytest.approx(-0.05 * (0.5 + 0.5 * np.exp(-1.0)) * np.tanh(3.0))
+    assert not np.allclose(stribeck.z, coulomb.z)
+    with pytest.raises(ValueError, match="stribeck"):
+        make_friction_oscillator(n_samples=300, stribeck=-0.1)

@@ -28,6 +28,8 @@ Conventions shared by all generators: ``x[k+1]`` is produced from ``x[k]`` and `
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import jax.numpy as jnp
 import numpy as np
 from sklearn.utils import Bunch, check_random_state
@@ -280,6 +282,9 @@ def _tanks_library():
 
 FRICTION_THETA = {"m": 1.0, "k": 4.0, "c": 0.4}
 FRICTION_FC, FRICTION_EPS, FRICTION_DT = 0.5, 0.1, 0.05
+FRICTION_VS = 0.3
+"""The Stribeck velocity of :func:`make_friction_oscillator` (about 20 % of the
+velocity's RMS)."""
 
 
 def oscillator_rhs(x, u, theta):
@@ -288,9 +293,12 @@ def oscillator_rhs(x, u, theta):
     return jnp.stack([x[1], accel])
 
 
-def _friction_effect(x, u, fc, eps, m, dt):
-    """``[0, -dt Fc tanh(v / eps) / m]`` (numpy)."""
-    drag = -dt * fc * np.tanh(x[..., 1] / eps) / m
+def _friction_effect(x, u, fc, eps, m, dt, stribeck=0.0):
+    """``[0, -dt (Fc + Fs exp(-(v / vs)^2)) tanh(v / eps) / m]`` (numpy; Fs = ``stribeck``,
+    vs = :data:`FRICTION_VS`)."""
+    v = x[..., 1]
+    level = fc if stribeck == 0.0 else fc + stribeck * np.exp(-((v / FRICTION_VS) ** 2))
+    drag = -dt * level * np.tanh(v / eps) / m
     return np.stack([np.zeros_like(drag), drag], axis=-1)
 
 
@@ -308,6 +316,7 @@ def make_friction_oscillator(
     random_state=None,
     *,
     process_noise_std: float = 0.0,
+    stribeck: float = 0.0,
 ) -> Bunch:
     """Mass-spring-damper whose physics misses Coulomb friction.
 
@@ -337,6 +346,12 @@ def make_friction_oscillator(
         Seed of the input and noise realisations.
     process_noise_std : float, default=0.0
         Standard deviation of a Gaussian disturbance added to the velocity update.
+    stribeck : float, default=0.0
+        :math:`F_s \\ge 0`: the friction level rises to :math:`F_c + F_s` near rest,
+        :math:`(F_c + F_s e^{-(v/v_s)^2}) \\tanh(v/\\varepsilon)` with :math:`v_s = 0.3`
+        (:data:`FRICTION_VS`), a Stribeck friction (the loop must refine its Coulomb
+        friction into the Stribeck one). ``hidden_effect["rates"]`` then holds
+        ``{"stribeck": Fs, "stribeck_velocity": 0.3}``.
 
     Returns
     -------
@@ -345,9 +360,33 @@ def make_friction_oscillator(
         hidden_effect, suggested_library, noise, sampling_time, DESCR``.
     """
     n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
+    system, rates = _friction_system(stribeck)
     rng = check_random_state(random_state)
     inputs = [2.0 * _multisine(rng, n, 0.05)[:, None] for _ in range(2)]
-    return _simple_dataset(_FRICTION_SYSTEM, rng, n, inputs, stds)
+    data = _simple_dataset(system, rng, n, inputs, stds)
+    if rates:
+        data.hidden_effect["rates"] = rates
+    return data
+
+
+def _friction_system(stribeck: float) -> tuple:
+    """The friction oscillator's system with a Stribeck level ``stribeck`` (0: the
+    Coulomb friction, :data:`_FRICTION_SYSTEM`) and the rates to report (none for 0)."""
+    stribeck = float(stribeck)
+    if not (np.isfinite(stribeck) and stribeck >= 0):
+        raise ValueError(f"stribeck must be finite and >= 0, got {stribeck!r}.")
+    if stribeck == 0.0:
+        return _FRICTION_SYSTEM, None
+    law = f"(Fc + {stribeck:g} exp(-(v/{FRICTION_VS:g})^2)) tanh(v/eps)"
+    system = replace(
+        _FRICTION_SYSTEM,
+        params={**_FRICTION_SYSTEM.params, "stribeck": stribeck},
+        effect_description=f"Stribeck friction -{law} opposing the velocity (velocity equation).",
+        descr=_FRICTION_SYSTEM.descr.replace("Fc tanh(x'/eps)", law).replace(
+            "Coulomb friction", "Stribeck friction"
+        ),
+    )
+    return system, {"coulomb": FRICTION_FC, "stribeck": stribeck, "stribeck_velocity": FRICTION_VS}
 
 
 def _oscillator_physics(values: dict, x0) -> PhysicsModel:
