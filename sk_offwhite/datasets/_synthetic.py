@@ -351,7 +351,7 @@ def make_friction_oscillator(
         :math:`(F_c + F_s e^{-(v/v_s)^2}) \\tanh(v/\\varepsilon)` with :math:`v_s = 0.3`
         (:data:`FRICTION_VS`), a Stribeck friction (the loop must refine its Coulomb
         friction into the Stribeck one). ``hidden_effect["rates"]`` then holds
-        ``{"stribeck": Fs, "stribeck_velocity": 0.3}``.
+        ``{"coulomb": 0.5, "stribeck": Fs, "stribeck_velocity": 0.3}``.
 
     Returns
     -------
