@@ -195,9 +195,19 @@ class Effect:
     def richer_start(self, values: dict) -> dict:
         """The start of :meth:`richer`'s parameters from this effect's fitted ``values``
         (by parameter name; any type): where the richer variant reproduces this effect,
-        its extra parameters at their declared starts (a parameter the fit drove onto a
-        flat direction it cannot leave may restart instead: see :class:`Friction`)."""
-        return {}
+        each of this effect's parameters carried into the richer one's of the same field
+        (``{name}_c0`` into ``{richer name}_c0``), its extra parameters at their declared
+        starts (a parameter the fit drove onto a flat direction it cannot leave may
+        restart instead: see :class:`Friction`); empty when there is no richer variant."""
+        richer = self.richer()
+        if richer is None:
+            return {}
+        start = richer.parameters()
+        for name in self.parameters():
+            carried = richer.name + name[len(self.name) :]
+            if carried in start:
+                start[carried] = values[name]
+        return start
 
     def _key(self):
         return (type(self), tuple(sorted(vars(self).items())))
@@ -500,14 +510,6 @@ class SensorCalibration(Effect):
         base = re.sub(r"_degree\d+$", "", self.name)
         return self.replace(degree=self.degree + 1, name=f"{base}_degree{self.degree + 1}")
 
-    def richer_start(self, values: dict) -> dict:
-        r""":math:`c_0 \dots c_d` carried over, :math:`c_{d+1} = 0`."""
-        richer = self.richer()
-        carried = {
-            f"{richer.name}_c{k}": values[f"{self.name}_c{k}"] for k in range(self.degree + 1)
-        }
-        return {**richer.parameters(), **carried}
-
 
 class SensorStep(Effect):
     r"""The reading of output ``output`` steps by a height where it passes a level.
@@ -744,15 +746,12 @@ class Friction(AdditiveEffect):
         unless the fit made it sharper than it started, where it restarts (a sign far
         sharper than every speed on the record is flat in :math:`w`: from there the
         Stribeck fit could not smooth it again)."""
-        richer = self.richer()
-        if richer is None:
-            return {}
+        start = super().richer_start(values)
         width = values[f"{self.name}_width"]
-        if getattr(width, "value", width) < self.width:
-            width = richer.parameters()[f"{richer.name}_width"]
-        coulomb = values[f"{self.name}_coulomb"]
-        carried = {f"{richer.name}_coulomb": coulomb, f"{richer.name}_width": width}
-        return {**richer.parameters(), **carried}
+        if start and getattr(width, "value", width) < self.width:
+            richer = self.richer()
+            start[f"{richer.name}_width"] = richer.parameters()[f"{richer.name}_width"]
+        return start
 
 
 class Bias(AdditiveEffect):
@@ -858,12 +857,6 @@ class Stiffness(AdditiveEffect):
             name=f"{self.name}_power",
         )  # fmt: skip
 
-    def richer_start(self, values: dict) -> dict:
-        """The coefficient carried over, the exponent at ``power``: this spring itself."""
-        richer = self.richer()
-        coefficient = values[f"{self.name}_coefficient"]
-        return {**richer.parameters(), f"{richer.name}_coefficient": coefficient}
-
 
 class PowerStiffness(Stiffness):
     r"""A restoring term of fitted exponent:
@@ -932,10 +925,6 @@ class PowerStiffness(Stiffness):
         """None: the exponent is already free."""
         return None
 
-    def richer_start(self, values: dict) -> dict:
-        """Empty: there is no richer variant."""
-        return {}
-
 
 class QuadraticDrag(AdditiveEffect):
     r"""Drag growing with the square of a velocity: :math:`g = -c\, v|v|`, :math:`v = x_s`.
@@ -974,12 +963,6 @@ class QuadraticDrag(AdditiveEffect):
         """The drag of fitted exponent (:class:`PowerDrag`, named ``{name}_power``) on the
         same reference velocity."""
         return PowerDrag(self.state, reference=self.reference, name=f"{self.name}_power")
-
-    def richer_start(self, values: dict) -> dict:
-        """The coefficient carried over, the exponent at 2: the quadratic drag itself."""
-        richer = self.richer()
-        coefficient = values[f"{self.name}_coefficient"]
-        return {**richer.parameters(), f"{richer.name}_coefficient": coefficient}
 
 
 class PowerDrag(QuadraticDrag):
@@ -1033,10 +1016,6 @@ class PowerDrag(QuadraticDrag):
     def richer(self) -> None:
         """None: the exponent is already free."""
         return None
-
-    def richer_start(self, values: dict) -> dict:
-        """Empty: there is no richer variant."""
-        return {}
 
 
 class DeadZone(Effect):

@@ -218,7 +218,7 @@ def _actuators(hypothesis, u, input_names, kinds: Kinds) -> list[Candidate]:
             continue
         if kinds.inputs[j] not in ACTUATOR_KINDS:
             continue
-        rms = float(np.sqrt(np.mean(u[:, j] ** 2)))
+        rms = _rms(u[:, j])  # positive: the input varies
         level = float(np.quantile(np.abs(u[:, j]), 0.9))
         if not level > 0:  # an input at zero most of the time: no level to start from
             continue

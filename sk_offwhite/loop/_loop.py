@@ -580,6 +580,12 @@ def _own(params: dict, effect) -> dict:
     return {name: value for name, value in params.items() if name in names}
 
 
+def _without(params: dict, effect) -> dict:
+    """The entries of ``params`` that are not ``effect``'s own parameters."""
+    names = effect.parameters()
+    return {name: value for name, value in params.items() if name not in names}
+
+
 def _rank_alone(board, candidates, u, z, settings, failures):
     """``(estimation RMSE, candidate, fitted effect parameters)`` of each candidate added
     alone, best first (``inf`` and a line in ``failures`` where the fit failed); a named
@@ -924,7 +930,7 @@ def _moves(effects, warm, ranked, rmse, lighter, settings, board):
     yield from _refinements(effects, warm, rmse, board)
     if len(effects) > 1:
         for out in effects:
-            kept = {n: p for n, p in warm.items() if n not in out.parameters()}
+            kept = _without(warm, out)
             yield tuple(e for e in effects if e != out), [kept], lighter
 
 
@@ -945,7 +951,7 @@ def _additions_and_exchanges(effects, warm, ranked, rmse, settings):
             rest = tuple(e for e in effects if e != out)
             if effect.mechanism in {e.mechanism for e in rest}:
                 continue
-            kept = {n: p for n, p in warm.items() if n not in out.parameters()}
+            kept = _without(warm, out)
             yield (*rest, effect), _starts(kept, effect, params), rmse
 
 
@@ -961,7 +967,7 @@ def _refinements(effects, warm, rmse, board):
         if richer is None or not board.ordered((richer,)):
             continue
         rest = tuple(e for e in effects if e != effect)
-        kept = {n: p for n, p in warm.items() if n not in effect.parameters()}
+        kept = _without(warm, effect)
         start = effect.richer_start({**effect.parameters(), **warm})
         yield (*rest, richer), [{**kept, **start}], rmse
 
