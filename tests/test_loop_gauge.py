@@ -163,6 +163,30 @@ def test_a_calibrated_level_of_free_scale_gets_a_parameter_held_and_the_same_fit
     assert report.identifiable and fit_undetermined_directions(held_fit, data.u, data.z) == ()
 
 
+def test_a_hold_not_kept_returns_the_unheld_models_cv(monkeypatch):
+    """Where the held refit fails, the model stays unheld and is scored by its own CV,
+    not by the held CV the loop passed in (the trail's)."""
+    from sk_offwhite.loop import _loop
+
+    data, physics = _tank(free_gain=True)
+    settings = LoopSettings(n_folds=2, max_iter=100)
+    final = _fitted(physics, data, settings)
+
+    def failing(*args):
+        raise ValueError("the held refit failed")
+
+    monkeypatch.setattr(_loop, "_fit_set", failing)
+    failures = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        out = hold_undetermined_directions(
+            physics, final, data.u, data.z, settings=settings, held_cv=0.001, failures=failures
+        )
+        free = cross_validated_rmse(warm_physics(physics, final), data.u, data.z, settings)
+    assert out[0] is physics and out[1] is final and out[3] is None
+    assert out[2] == pytest.approx(free) and "held refit failed" in failures[0]
+
+
 def test_a_fit_the_data_determine_is_left_as_it_is():
     data, physics = _tank(free_gain=False)
     settings = LoopSettings(n_folds=2, max_iter=100)

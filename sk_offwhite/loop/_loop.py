@@ -1193,7 +1193,8 @@ def hold_undetermined_directions(
     settings : LoopSettings, default=None
         The fits' and the CV's settings (``LoopSettings()`` when ``None``).
     cv : float, default=None
-        The CV RMSE of ``physics`` as fitted (computed when ``None`` and needed).
+        The CV RMSE of ``physics`` as fitted (computed when ``None`` and a parameter is
+        to be held: the note gives it, and it scores the model when the hold is not kept).
     failures : list, default=None
         Where a failed refit is recorded (a line), as the loop records its fits'.
     held_cv : float, default=None
@@ -1212,6 +1213,8 @@ def hold_undetermined_directions(
     held, directions = _held_on_fit(physics, est, u, z, effects)
     if not held:
         return physics, est, cv, None
+    if cv is None:  # the note's, or the score of the model left unheld
+        cv = cross_validated_rmse(warm_physics(physics, est), u, z, settings)
     held_physics = holding(warm_physics(physics, est), held)
     refit = _attempt([] if failures is None else failures, "undetermined directions held", _fit_set,
                      _estimator(held_physics, settings), effects, u, z, settings)  # fmt: skip
@@ -1220,8 +1223,6 @@ def hold_undetermined_directions(
     rmse = (_rmse(est.predict(u), z), _rmse(refit.predict(u), z))
     if rmse[1] > (1.0 + HOLD_SLACK) * rmse[0]:
         return physics, est, cv, None
-    if cv is None:
-        cv = cross_validated_rmse(warm_physics(physics, est), u, z, settings)
     if held_cv is None:
         held_cv = cross_validated_rmse(warm_physics(held_physics, refit), u, z, settings)
     if held_cv > (1.0 + settings.tolerance) * cv:
