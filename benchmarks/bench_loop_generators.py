@@ -43,6 +43,7 @@ from sk_offwhite import (
     PowerDrag,
     PowerStiffness,
     QuadraticDrag,
+    RelaxedLaw,
     SensorCalibration,
     SensorStep,
     Stiffness,
@@ -51,6 +52,7 @@ from sk_offwhite.datasets import (
     make_backlash_servo,
     make_cascaded_tanks,
     make_clearance_coupling,
+    make_convective_block,
     make_coulomb_drive,
     make_dead_zone_motor,
     make_diode_rc,
@@ -105,6 +107,12 @@ def _stribeck(**kwargs):
     return make_friction_oscillator(stribeck=0.5, **kwargs)
 
 
+def _convection_relaxable(**kwargs):
+    """The block that loses heat by natural convection (power 4/3), its declared loss law
+    written with a relaxable exponent (fixed at 1): the loop may free it."""
+    return make_convective_block(relaxable=True, **kwargs)
+
+
 # name: (generator, short length, effect kind, (fitted parameter, rates key) or None)
 SYSTEMS = {
     "drive": (make_coulomb_drive, 2000, Friction, ("friction_v_coulomb", "coulomb")),
@@ -143,6 +151,13 @@ SYSTEMS = {
         ("step_x_height", "step_height"),
     ),
     "heater": (make_heated_block, 1000, InputSaturation, ("actuator_limit_P_level", "limit")),
+    "convection": (make_convective_block, 1000, RelaxedLaw, None),
+    "convection_relaxable": (
+        _convection_relaxable,
+        1000,
+        RelaxedLaw,
+        ("loss_exponent", "exponent"),
+    ),
     "diode": (make_diode_rc, 600, DifferenceDeadZone, ("drop_e_v_width", "drop")),
     "clearance": (
         make_clearance_coupling,

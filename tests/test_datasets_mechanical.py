@@ -1,6 +1,6 @@
 """Tests of the mechanical, thermal and electrical synthetic generators (drive, Duffing,
-pendulum, dead-zone motor, coupling with a clearance, heated block, RC circuit behind a
-diode)."""
+pendulum, dead-zone motor, coupling with a clearance, heated block, convective block, RC
+circuit behind a diode)."""
 
 import pickle
 
@@ -10,8 +10,10 @@ import numpy as np
 import pysindy as ps
 import pytest
 
+from sk_offwhite._effects import signed_power
 from sk_offwhite.datasets import (
     make_clearance_coupling,
+    make_convective_block,
     make_coulomb_drive,
     make_dead_zone_motor,
     make_diode_rc,
@@ -26,13 +28,15 @@ GENERATORS = {
     "pendulum": make_pendulum_drag,
     "motor": make_dead_zone_motor,
     "heater": make_heated_block,
+    "convection": make_convective_block,
     "diode": make_diode_rc,
     "clearance": make_clearance_coupling,
 }
 NAMES = list(GENERATORS)
+THERMAL = ("heater", "convection")
 N = 500
 SHAPES = {"drive": (2, 1), "duffing": (2, 1), "pendulum": (2, 1), "motor": (1, 1), "heater": (1, 1),
-          "diode": (1, 1), "clearance": (2, 1)}  # fmt: skip
+          "convection": (1, 1), "diode": (1, 1), "clearance": (2, 1)}  # fmt: skip
 KINDS = {
     "position", "velocity", "angle", "rate", "force", "voltage", "torque", "temperature",
     "generic",
@@ -43,6 +47,7 @@ BOUNDS = {  # largest |x| per state: well inside Euler's stable region, no rotat
     "pendulum": (np.pi, 10.0),
     "motor": (8.0,),
     "heater": (340.0,),  # kelvin: absolute temperatures
+    "convection": (340.0,),
     "diode": (15.0,),  # volts: never above the source's peaks
     "clearance": (3.0, 40.0),  # the load is jerked from rest at the first samples
 }
@@ -83,6 +88,10 @@ def _rate(name, rates, x, u):
         return -rates["quadratic_drag"] * x[..., 1] * np.abs(x[..., 1])
     if name == "heater":
         return -np.maximum(u[..., 0] - rates["limit"], 0.0) / rates["capacity"]
+    if name == "convection":
+        excess = x[..., 0] - rates["ambient"]
+        power = signed_power(excess, 10.0, 1, rates["exponent"], xp=np)
+        return -rates["conductance"] * (power - excess) / rates["capacity"]
     if name == "diode":
         drive = u[..., 0] - x[..., 0]
         return (np.maximum(drive - rates["drop"], 0.0) - drive) / rates["tau"]
@@ -196,7 +205,7 @@ def test_physics_guess_differs_from_the_truth(generated, name):
     guess = np.array([data.physics.parameters[p].value for p in names])
     truth = np.array([data.true_parameters[p] for p in names])
     assert np.all((np.abs(guess - truth) / truth > 0.15) & (np.abs(guess - truth) / truth < 0.35))
-    if name == "heater":  # an absolute temperature: a few kelvin off, not a fraction of it
+    if name in THERMAL:  # an absolute temperature: a few kelvin off, not a fraction of it
         assert 2.0 < abs(data.physics.parameters["ambient"].value - 295.0) < 10.0
 
 
@@ -216,7 +225,8 @@ def test_suggested_library_represents_the_hidden_effect(generated, name):
     target = data.hidden_effect["function"](data.x[:-1], data.u[:-1])
     coef, *_ = np.linalg.lstsq(theta, target, rcond=None)
     explained = 1 - np.sum((theta @ coef - target) ** 2) / np.sum((target - target.mean()) ** 2)
-    assert explained > (0.8 if name in ("motor", "heater", "diode", "clearance") else 1 - 1e-9)
+    approximate = ("motor", *THERMAL, "diode", "clearance")  # the library only approximates
+    assert explained > (0.8 if name in approximate else 1 - 1e-9)
     customs = getattr(data.suggested_library, "libraries", [])
     for custom in (lib for lib in customs if isinstance(lib, ps.CustomLibrary)):
         for function in custom.functions:
@@ -257,3 +267,29 @@ def test_arguments_are_validated(make):
         make(n_samples=10, noise_std=-1.0)
     with pytest.raises(ValueError, match="process_noise_std"):
         make(n_samples=10, process_noise_std=float("nan"))
+
+
+def test_convective_block_declares_a_relaxable_loss_law_on_request(generated):
+    data = generated["convection"][0]
+    relaxable = make_convective_block(n_samples=N, random_state=0, relaxable=True)
+    for key in ("u", "z", "x", "u_val", "z_val", "x_val"):
+        np.testing.assert_array_equal(relaxable[key], data[key])
+    law = relaxable.physics.parameters["loss_exponent"]
+    assert (law.value, law.fixed, law.relaxable, law.bounds) == (1.0, True, True, (0.5, 3.0))
+    assert "loss_exponent" not in data.physics.parameters
+    x, u, theta = data.x[:-1], data.u[:-1], dict(data.true_parameters)
+    linear = _physics_next(data, x, u)
+    with jax.enable_x64(True):
+        step = jax.vmap(relaxable.physics.step, in_axes=(0, 0, None))
+        at_one = np.array(step(jnp.asarray(x), jnp.asarray(u), {**theta, "loss_exponent": 1.0}))
+        true_law = {**theta, "loss_exponent": data.hidden_effect["rates"]["exponent"]}
+        convective = np.array(step(jnp.asarray(x), jnp.asarray(u), true_law))
+    np.testing.assert_allclose(at_one, linear, rtol=0, atol=1e-10)
+    np.testing.assert_allclose(convective, data.x[1:], rtol=0, atol=1e-10)
+    assert data.hidden_effect["rates"]["exponent"] == pytest.approx(4.0 / 3.0)
+
+
+@pytest.mark.parametrize("exponent", [0.4, 3.5, float("nan")])
+def test_convective_block_exponent_is_validated(exponent):
+    with pytest.raises(ValueError, match="exponent"):
+        make_convective_block(n_samples=10, exponent=exponent)

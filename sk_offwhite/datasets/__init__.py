@@ -34,7 +34,7 @@ from sk_offwhite.datasets._synthetic import (
     make_vehicle_lateral,
     vehicle_dictionary_library,
 )
-from sk_offwhite.datasets._thermal import make_heated_block
+from sk_offwhite.datasets._thermal import make_convective_block, make_heated_block
 from sk_offwhite.datasets._vehicle import vehicle_physics_known_registers
 
 __all__ = [
@@ -43,6 +43,7 @@ __all__ = [
     "make_backlash_servo",
     "make_cascaded_tanks",
     "make_clearance_coupling",
+    "make_convective_block",
     "make_coulomb_drive",
     "make_dead_zone_motor",
     "make_diode_rc",

@@ -1,4 +1,4 @@
-"""Synthetic thermal system whose declared physics misses one effect.
+"""Synthetic thermal systems whose declared physics misses one effect.
 
 Same conventions as :mod:`sk_offwhite.datasets._mechanical`: one explicit-Euler step of the
 declared physics per sample plus an additive hidden effect on the temperature equation, in
@@ -9,19 +9,26 @@ tested on an offset record.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from sklearn.utils import Bunch
 
-from sk_offwhite._physics import PhysicsModel
+from sk_offwhite._effects import signed_power
+from sk_offwhite._physics import Parameter, PhysicsModel
 from sk_offwhite.datasets._common import _SimpleSystem
 from sk_offwhite.datasets._mechanical import _generate, _Generator
 from sk_offwhite.datasets._synthetic import _first_order_physics
 
-__all__ = ["make_heated_block"]
+__all__ = ["make_convective_block", "make_heated_block"]
 
 HEATER_THETA = {"capacity": 800.0, "conductance": 2.5, "ambient": 295.0}
 HEATER_LIMIT, HEATER_DT = 60.0, 2.0
 HEATER_MEAN, HEATER_STD = 45.0, 25.0
+CONVECTION_REFERENCE = 10.0
+r"""The temperature excess (K) at which the convective block's loss law of any exponent
+conducts :math:`G\,\Delta T`: the conductance keeps its meaning whatever the exponent."""
+LOSS_EXPONENT_BOUNDS = (0.5, 3.0)
 
 
 def heated_block_rhs(x, u, theta):
@@ -124,3 +131,122 @@ def make_heated_block(
         hidden_effect, suggested_library, noise, sampling_time, kinds, DESCR``.
     """
     return _generate(_HEATED_BLOCK, n_samples, noise_std, random_state, process_noise_std)
+
+
+def convective_block_rhs(x, u, theta):
+    r""":math:`\dot T = (P - G\,\Delta_r\,\mathrm{sign}(\Delta)|\Delta/\Delta_r|^{a}) / C`,
+    :math:`\Delta = T - T_a`, :math:`\Delta_r` = :data:`CONVECTION_REFERENCE`, :math:`a`
+    = ``theta["loss_exponent"]``: Newton's law of cooling at :math:`a = 1`."""
+    excess = x[0] - theta["ambient"]
+    power = signed_power(excess, CONVECTION_REFERENCE, 1, theta["loss_exponent"])
+    return (u[0] - theta["conductance"] * power)[None] / theta["capacity"]
+
+
+def _convection_effect(x, u, exponent, conductance, ambient, capacity, dt):
+    r"""``-dt G (Δ |Δ/Δ_r|^(a-1) - Δ) / C`` on the temperature equation (numpy): the loss
+    of exponent ``a`` less the linear one the physics declares."""
+    excess = x[..., 0] - ambient
+    power = signed_power(excess, CONVECTION_REFERENCE, 1, exponent, xp=np)
+    return (-dt * conductance * (power - excess) / capacity)[..., None]
+
+
+def _relaxable_loss(physics: PhysicsModel) -> PhysicsModel:
+    """The heated block's declared ``physics`` written with its loss law's exponent, a
+    parameter ``loss_exponent`` fixed at 1 that the closed loop may free."""
+    values = {name: spec.value for name, spec in physics.parameters.items()}
+    relaxed = _first_order_physics(
+        convective_block_rhs,
+        {**values, "loss_exponent": 1.0},
+        physics.x0,
+        HEATER_DT,
+        ("T", "P"),
+        ("temperature", "generic"),
+    )
+    law = Parameter(1.0, LOSS_EXPONENT_BOUNDS, fixed=True, relaxable=True)
+    return relaxed.with_parameters(loss_exponent=law)
+
+
+def _convective_generator(exponent: float) -> _Generator:
+    """The heated block without a heater limit, its loss of power ``exponent``."""
+    params = {"exponent": exponent, **HEATER_THETA, "dt": HEATER_DT}
+    system = dataclasses.replace(
+        _HEATED_BLOCK.system,
+        contribution=_convection_effect,
+        params=params,
+        variables=("T",),
+        effect_description="The block loses heat by natural convection, G Δ_r "
+        f"(ΔT/Δ_r)^{exponent:g} (Δ_r = 10 K), not in proportion to ΔT.",
+        descr="Heated block C T' = P - G (T - T_a) [SI units: K, W, J/K, s], C=800 J/K, "
+        "G=2.5 W/K, T_a=295 K, Euler dt=2 s, temperature measured; the block loses heat by "
+        f"natural convection, in the power {exponent:g} of T - T_a, which the physics does "
+        "not know.\n",
+    )
+    return dataclasses.replace(
+        _HEATED_BLOCK, system=system, rates={"exponent": exponent, **HEATER_THETA}
+    )
+
+
+def make_convective_block(
+    n_samples: int = 2000,
+    noise_std: float | None = None,
+    random_state=None,
+    *,
+    exponent: float = 4.0 / 3.0,
+    relaxable: bool = False,
+    process_noise_std: float = 0.0,
+) -> Bunch:
+    r"""A heated block whose physics assumes Newton's law of cooling; it loses heat by
+    natural convection.
+
+    True system, one explicit-Euler step of :math:`\Delta t = 2` s per sample:
+
+    .. math::
+
+        C\,\dot T = P - G\,\Delta_r \,\mathrm{sign}(\Delta)
+        \left|\frac{\Delta}{\Delta_r}\right|^{a}, \qquad \Delta = T - T_a,
+        \qquad z = T + \eta,
+
+    with :math:`C = 800` J/K, :math:`G = 2.5` W/K, :math:`T_a = 295` K, :math:`\Delta_r =
+    10` K (:data:`CONVECTION_REFERENCE`) and :math:`a` = ``exponent`` (4/3: turbulent
+    natural convection, a heat-transfer coefficient growing as :math:`\Delta^{1/3}`; 5/4
+    laminar). The physics declares :math:`a = 1` and fits :math:`C`, :math:`G` and
+    :math:`T_a`. The hidden effect, the convective loss less the linear one, enters the
+    temperature equation; ``hidden_effect["rates"]`` holds ``exponent`` and the true
+    :math:`C`, :math:`G`, :math:`T_a`. The input and noise are those of
+    :func:`make_heated_block` (the heater is not limited here): temperatures of about
+    305-317 K, 10-22 K above ambient.
+
+    With ``relaxable=True`` the declared law is written with its exponent, a parameter
+    ``loss_exponent`` fixed at 1 and relaxable (:class:`~sk_offwhite.Parameter`), so the
+    closed loop may free it (:class:`~sk_offwhite.RelaxedLaw`); otherwise the physics is
+    :func:`make_heated_block`'s, and the loop has no candidate of the hidden effect's kind
+    (a loss law of another power): what it adds instead is the test.
+
+    Parameters
+    ----------
+    n_samples : int, default=2000
+        Length of each record.
+    noise_std : float or None, default=None
+        Standard deviation (K) of the temperature-sensor noise; ``None``: 0.02 K.
+    random_state : int, RandomState instance or None, default=None
+        Seed of the input and noise realisations.
+    exponent : float, default=4/3
+        The true loss law's exponent :math:`a`, in [0.5, 3].
+    relaxable : bool, default=False
+        Declare the loss law's exponent (fixed at 1) relaxable.
+    process_noise_std : float, default=0.0
+        Standard deviation (K) of a Gaussian disturbance added to the temperature update.
+
+    Returns
+    -------
+    data : sklearn.utils.Bunch
+        As :func:`make_heated_block`.
+    """
+    lower, upper = LOSS_EXPONENT_BOUNDS
+    if not lower <= exponent <= upper:
+        raise ValueError(f"exponent must lie in [{lower}, {upper}], got {exponent!r}.")
+    spec = _convective_generator(float(exponent))
+    data = _generate(spec, n_samples, noise_std, random_state, process_noise_std)
+    if relaxable:
+        data.physics = _relaxable_loss(data.physics)
+    return data
