@@ -41,6 +41,7 @@ from sk_offwhite import (
     Overflow,
     Parameter,
     PowerDrag,
+    PowerLoss,
     PowerStiffness,
     QuadraticDrag,
     RelaxedLaw,
@@ -151,7 +152,7 @@ SYSTEMS = {
         ("step_x_height", "step_height"),
     ),
     "heater": (make_heated_block, 1000, InputSaturation, ("actuator_limit_P_level", "limit")),
-    "convection": (make_convective_block, 1000, RelaxedLaw, None),
+    "convection": (make_convective_block, 1000, PowerLoss, None),
     "convection_relaxable": (
         _convection_relaxable,
         1000,

@@ -632,6 +632,61 @@ class Leak(AdditiveEffect):
         return f"{state_names[self.state]} leaks in proportion to its value"
 
 
+class PowerLoss(AdditiveEffect):
+    r"""A loss growing with a fitted power of a state's excess over a level:
+
+    .. math::
+
+        g = -c\,\Delta \left(\frac{|\Delta|}{\Delta_r}\right)^{a - 1},
+        \qquad \Delta = x_s - \ell,
+
+    on top of the declared loss: a heat loss by convection (:math:`a` = 5/4 or 4/3) or
+    radiation where the physics declares Newton's law of cooling, whose linear part the
+    declared conductance keeps. Parameters ``{name}_rate`` (:math:`c \ge 0`: the loss is
+    :math:`c\,\Delta_r` at :math:`|\Delta| = \Delta_r` whatever :math:`a`),
+    ``{name}_level`` (:math:`\ell`, in the state's units) and ``{name}_exponent``
+    (:math:`a`, in :data:`EXPONENT_BOUNDS`, started at 2: at :math:`a = 1` the loss is
+    linear, which the declared one already is).
+    ``reference`` (:math:`\Delta_r > 0`, the loop takes the state's RMS deviation on the
+    record) makes the rate convert with the state's units alone.
+    """
+
+    EXPONENT_BOUNDS = (1.0, 3.0)
+
+    def __init__(
+        self,
+        state: int,
+        *,
+        rate: float = 0.0,
+        level: float = 0.0,
+        exponent: float = 2.0,
+        reference: float = 1.0,
+        name: str = "loss",
+    ):
+        self.state, self.rate, self.level, self.name = int(state), float(rate), float(level), name
+        self.exponent = _check_exponent(exponent, self.EXPONENT_BOUNDS)
+        self.reference = _check_reference(reference)
+
+    def parameters(self) -> dict[str, Parameter]:
+        return {
+            f"{self.name}_rate": Parameter(self.rate, (0.0, None)),
+            f"{self.name}_level": Parameter(self.level),
+            f"{self.name}_exponent": Parameter(self.exponent, self.EXPONENT_BOUNDS),
+        }
+
+    def term(self, x, u, theta):
+        excess = x[self.state] - theta[f"{self.name}_level"]
+        power = signed_power(excess, self.reference, 1, theta[f"{self.name}_exponent"])
+        return -theta[f"{self.name}_rate"] * power
+
+    def describe(self, state_names, output_names, values=None) -> str:
+        exponent = (values or {}).get(f"{self.name}_exponent", self.exponent)
+        return (
+            f"{state_names[self.state]} loses in the power {float(exponent):.3g} of its excess "
+            "over a level, beyond the declared loss"
+        )
+
+
 class Friction(AdditiveEffect):
     r"""Coulomb (and optionally Stribeck) friction braking a velocity, with a smooth sign.
 

@@ -8,7 +8,8 @@ only where they make physical sense for the variables' kinds
 * levels (and one-signed generic states): overflows, leaks, caps;
 * velocities and rates: Coulomb friction, quadratic drag (velocities), a polynomial
   stiffness in the kinematic partner (the position), a constant (a force offset);
-* any equation: a constant (:class:`~sk_offwhite.Bias`), a leak for generic states;
+* any equation: a constant (:class:`~sk_offwhite.Bias`), a leak for generic states and
+  temperatures; temperatures: a loss of fitted power (:class:`~sk_offwhite.PowerLoss`);
 * inputs in the hypothesis that are efforts or flows: a saturating actuator and a dead zone;
 * inputs of a state's declared kind, whatever the hypotheses say: a threshold on their
   difference with that state, two- or one-sided (:class:`~sk_offwhite.DifferenceDeadZone`:
@@ -51,6 +52,7 @@ from .._effects import (
     OutputOffset,
     OutputSaturation,
     Overflow,
+    PowerLoss,
     QuadraticDrag,
     SensorCalibration,
     SensorStep,
@@ -197,13 +199,27 @@ def _mechanical(hypothesis, states, names, kinds: Kinds) -> list[Candidate]:
     return out
 
 
-def _constants(hypothesis, kinds: Kinds) -> list[Candidate]:
-    """A constant in the equation (a force offset, an inflow); a leak for generic states."""
+def _constants(hypothesis, states, kinds: Kinds) -> list[Candidate]:
+    """A constant in the equation (a force offset, an inflow); a leak for generic states
+    and temperatures, and for a temperature a loss of another law than the declared one."""
     i, name = hypothesis.equation_index, hypothesis.equation
     out = [Candidate(Bias(i, name=f"bias_{name}"), f"{hypothesis.sentence} A constant term.")]
     if kinds.states[i] in ("generic", "temperature") and hypothesis.sign < 0:
         out.append(Candidate(Leak(i, name=f"leak_{name}"), f"{hypothesis.sentence} A leak."))
+    if kinds.states[i] == "temperature" and hypothesis.sign < 0:
+        out.append(_power_loss(hypothesis, states[:, i]))
     return out
+
+
+def _power_loss(hypothesis, temperature: np.ndarray) -> Candidate:
+    """A heat loss in a fitted power of the excess over a level (:class:`PowerLoss`):
+    convection or radiation where the physics declares Newton's law. The level starts at
+    the lowest simulated temperature, the exponent at 2; the reference excess is the
+    temperature's RMS deviation on the record."""
+    i, name = hypothesis.equation_index, hypothesis.equation
+    level, reference = float(np.min(temperature)), _rms(temperature - np.mean(temperature))
+    loss = PowerLoss(i, level=level, reference=reference, name=f"loss_{name}")
+    return Candidate(loss, f"{hypothesis.sentence} A loss of {name} in a power of its excess.")
 
 
 def _actuators(hypothesis, u, input_names, kinds: Kinds) -> list[Candidate]:
@@ -482,7 +498,7 @@ def propose_effects(
     for hypothesis in hypotheses:
         found = _level_effects(hypothesis, states, names, kinds)
         found += _mechanical(hypothesis, states, names, kinds)
-        found += _constants(hypothesis, kinds)
+        found += _constants(hypothesis, states, kinds)
         if u_arr is not None:
             found += _actuators(hypothesis, u_arr, tuple(input_names), kinds)
             found += _transmissions(hypothesis, u_arr, tuple(input_names), kinds)
