@@ -110,11 +110,12 @@ def _stribeck(**kwargs):
 
 def _convection_relaxable(**kwargs):
     """The block that loses heat by natural convection (power 4/3), its declared loss law
-    written with a relaxable exponent (fixed at 1): the loop may free it."""
+    written with a relaxable exponent (fixed at 1): the loop may free it, or add a loss of
+    fitted power (either is of the hidden effect's kind)."""
     return make_convective_block(relaxable=True, **kwargs)
 
 
-# name: (generator, short length, effect kind, (fitted parameter, rates key) or None)
+# name: (generator, short length, effect kind(s), (fitted parameter, rates key) or None)
 SYSTEMS = {
     "drive": (make_coulomb_drive, 2000, Friction, ("friction_v_coulomb", "coulomb")),
     "duffing": (make_duffing_oscillator, 1500, Stiffness, ("stiffness_y_coefficient", "cubic")),
@@ -156,7 +157,7 @@ SYSTEMS = {
     "convection_relaxable": (
         _convection_relaxable,
         1000,
-        RelaxedLaw,
+        (RelaxedLaw, PowerLoss),
         ("loss_exponent", "exponent"),
     ),
     "diode": (make_diode_rc, 600, DifferenceDeadZone, ("drop_e_v_width", "drop")),

@@ -1,15 +1,19 @@
-"""A loss of fitted power (:class:`PowerLoss`): its law, its units, and where the loop
-proposes it (a temperature's equation that loses, not a level's)."""
+"""A loss of fitted power (:class:`PowerLoss`): its law, its units, where the loop proposes
+it (a temperature's equation that loses, not a level's), and what it does for a block that
+loses heat by natural convection where its physics declares Newton's law."""
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sk_offwhite import PowerLoss
+from sk_offwhite import PowerLoss, augment
 from sk_offwhite._kinds import Kinds
+from sk_offwhite.datasets import make_convective_block
+from sk_offwhite.loop import LoopSettings, fit_continued, warm_physics
 from sk_offwhite.loop._candidates import propose_effects
 from sk_offwhite.loop._hypotheses import Hypothesis
+from sk_offwhite.loop._loop import _estimator
 
 
 def _term(loss, x, theta):
@@ -72,3 +76,24 @@ def test_a_temperature_that_loses_is_offered_a_loss_of_fitted_power_started_from
     assert "loss_T" not in _proposed("temperature", 1)[0]  # a gain is not a loss
     for kind in ("level", "generic", "velocity"):
         assert not any(isinstance(e, PowerLoss) for e in _proposed(kind, -1)[0].values())
+
+
+def test_a_loss_of_fitted_power_takes_the_convective_block_to_the_sensors_noise():
+    """Newton's law declared, natural convection (power 4/3) true: with the loss of fitted
+    power added as the loop proposes it, the fit simulates the validation record at the
+    sensor's noise, and the heat capacity (which no loss law trades with) comes back."""
+    data = make_convective_block(n_samples=600, random_state=0)
+    temperature = data.x[:, 0]  # the record's range, as the loop's simulated one
+    loss = PowerLoss(0, level=temperature.min(), reference=np.std(temperature), name="loss_T")
+    settings = LoopSettings(max_iter=100)
+    declared = fit_continued(_estimator(data.physics, settings), data.u, data.z, 128)
+    physics = augment(warm_physics(data.physics, declared), loss)
+    augmented = fit_continued(_estimator(physics, settings), data.u, data.z, 128)
+
+    def validation(est):
+        return float(np.sqrt(np.mean((est.predict(data.u_val) - data.z_val) ** 2)))
+
+    noise = data.noise["output"]["std"]
+    assert validation(augmented) < 1.1 * noise < 0.5 * validation(declared)
+    assert augmented.parameters_["capacity"] == pytest.approx(800.0, rel=0.01)
+    assert 1.0 < augmented.parameters_["loss_T_exponent"] < 3.0

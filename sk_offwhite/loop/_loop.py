@@ -588,9 +588,8 @@ def _without(params: dict, effect) -> dict:
 
 def _rank_alone(board, candidates, u, z, settings, failures):
     """``(estimation RMSE, candidate, fitted effect parameters)`` of each candidate added
-    alone, best first (``inf`` and a line in ``failures`` where the fit failed); a relaxed
-    law ranks before a named effect, and a named effect before a promoted term, unless the
-    other is better by ``tolerance`` (:func:`_handicap`)."""
+    alone, best first (``inf`` and a line in ``failures`` where the fit failed); a named
+    effect ranks before a promoted term unless the term is better by ``tolerance``."""
     calls = [
         (f"candidate {c.effect.name}", _quick_fit, board, (c.effect,), {}, u, z, settings)
         for c in candidates
@@ -605,16 +604,8 @@ def _rank_alone(board, candidates, u, z, settings, failures):
 
 
 def _handicap(effect, settings) -> float:
-    """A named effect must beat a relaxed declared law (:class:`~sk_offwhite.RelaxedLaw`),
-    and a promoted dictionary term a named effect, by ``tolerance`` to rank first: within
-    it the smaller change to the user's physics is taken. (A loss of fitted power and the
-    relaxed exponent of the declared loss fitted the convective block within 0.02 % of each
-    other; the loss ranked first and moved the declared conductance by 34 %, where the
-    relaxed law leaves it within 0.2 % of the truth.)"""
-    if effect.target == "law":
-        return 1.0
-    named = 1.0 + settings.tolerance
-    return named * (1.0 + settings.tolerance) if isinstance(effect, DictionaryTerm) else named
+    """A promoted dictionary term must beat a named effect by ``tolerance`` to rank first."""
+    return 1.0 + settings.tolerance if isinstance(effect, DictionaryTerm) else 1.0
 
 
 def _forward(board, ranked, u, z, settings, base_rmse, failures):
