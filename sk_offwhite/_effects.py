@@ -640,10 +640,11 @@ class PowerLoss(AdditiveEffect):
         g = -c\,\Delta \left(\frac{|\Delta|}{\Delta_r}\right)^{a - 1},
         \qquad \Delta = x_s - \ell,
 
-    on top of the declared loss: a heat loss by convection (:math:`a` = 5/4 or 4/3) or
-    radiation where the physics declares Newton's law of cooling, whose linear part the
-    declared conductance keeps. Parameters ``{name}_rate`` (:math:`c \ge 0`: the loss is
-    :math:`c\,\Delta_r` at :math:`|\Delta| = \Delta_r` whatever :math:`a`),
+    on top of the declared loss: a heat loss by convection (:math:`a` = 5/4 or 4/3), or
+    the curvature of a radiative one, where the physics declares Newton's law of cooling,
+    whose linear part the declared conductance keeps. Parameters ``{name}_rate``
+    (:math:`c \ge 0`: the loss is :math:`c\,\Delta_r` at :math:`|\Delta| = \Delta_r`
+    whatever :math:`a`),
     ``{name}_level`` (:math:`\ell`, in the state's units) and ``{name}_exponent``
     (:math:`a`, in :data:`EXPONENT_BOUNDS`, started at 2: at :math:`a = 1` the loss is
     linear, which the declared one already is).

@@ -214,13 +214,13 @@ def make_convective_block(
     temperature equation; ``hidden_effect["rates"]`` holds ``exponent`` and the true
     :math:`C`, :math:`G`, :math:`T_a`. The input and noise are those of
     :func:`make_heated_block` (the heater is not limited here): temperatures of about
-    305-317 K, 10-22 K above ambient.
+    303-317 K, 8-22 K above ambient.
 
     With ``relaxable=True`` the declared law is written with its exponent, a parameter
     ``loss_exponent`` fixed at 1 and relaxable (:class:`~sk_offwhite.Parameter`), so the
     closed loop may free it (:class:`~sk_offwhite.RelaxedLaw`); otherwise the physics is
-    :func:`make_heated_block`'s, and the loop has no candidate of the hidden effect's kind
-    (a loss law of another power): what it adds instead is the test.
+    :func:`make_heated_block`'s, and the loop can only add a loss on top of the declared
+    linear one (:class:`~sk_offwhite.PowerLoss`, whose fitted law is not the true one).
 
     Parameters
     ----------
