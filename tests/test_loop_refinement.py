@@ -13,8 +13,10 @@ from sk_offwhite import (
     Leak,
     Parameter,
     PowerDrag,
+    PowerLoss,
     PowerStiffness,
     QuadraticDrag,
+    RelaxedLaw,
     SensorCalibration,
     Stiffness,
 )
@@ -26,7 +28,15 @@ from sk_offwhite.datasets import (
     sensor_reading,
 )
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
-from sk_offwhite.loop._loop import _refinements, _set_cv, _swap, _with_richer
+from sk_offwhite.loop._candidates import Candidate
+from sk_offwhite.loop._loop import (
+    _additions_and_exchanges,
+    _refinements,
+    _set_cv,
+    _size,
+    _swap,
+    _with_richer,
+)
 from sk_offwhite.loop._switchboard import effect_sets
 
 CALIBRATION = SensorCalibration(0, center=4.0, scale=2.0, name="sensor_x")
@@ -319,3 +329,20 @@ def test_the_stribeck_oscillator_and_its_checks():
     assert not np.allclose(stribeck.z, coulomb.z)
     with pytest.raises(ValueError, match="stribeck"):
         make_friction_oscillator(n_samples=300, stribeck=-0.1)
+
+
+def test_an_exchange_for_an_effect_of_fewer_parameters_has_the_bar_of_a_lighter_set():
+    """An exchange that lowers the parameter count is judged as a removal is (the lighter
+    set's bar), any other exchange must fit better than the set."""
+    loss = PowerLoss(0, level=300.0, name="loss_T")  # 3 parameters
+    law = RelaxedLaw("loss_exponent", 1.0, (0.5, 3.0))  # 1 parameter
+    leak = Leak(0, name="leak_T")  # 1 parameter
+    settings = LoopSettings(beam=4, max_effects=1)
+    ranked = [(0.02, Candidate(e, ""), {}) for e in (law, leak)]
+    moves = list(_additions_and_exchanges((loss,), {}, ranked, 0.0197, 0.0203, settings))
+    bars = {trial[0].name: bar for trial, _, bar in moves}
+    assert bars == {law.name: 0.0203, "leak_T": 0.0203}
+    heavier = list(_additions_and_exchanges((leak,), {}, [(0.02, Candidate(loss, ""), {})],
+                                            0.0197, 0.0203, settings))  # fmt: skip
+    assert [bar for _, _, bar in heavier] == [0.0197]
+    assert _size((loss,)) == 3 and _size((law, leak)) == 2
