@@ -310,7 +310,8 @@ def test_a_set_never_holds_two_variants_of_one_mechanism(monkeypatch):
         ["overflow_x2", "overflow_x1_to_x2"],
         ["overflow_x2", "overflow_x1_to_x2", "leak_x1"],
     ]
-    moves = [m[0] for m in _loop._additions_and_exchanges((out, upper), {}, ranked, 1.0, settings)]
+    exchanges = _loop._additions_and_exchanges((out, upper), {}, ranked, 1.0, 1.0, settings)
+    moves = [m[0] for m in exchanges]
     assert all(len({e.mechanism for e in m}) == len(m) for m in moves)
     assert (out, upper, leak) in moves and (upper, leak) in moves
 
