@@ -671,7 +671,7 @@ def _within(group, tolerance: float) -> list:
 
 
 def _n_parameters(item) -> int:
-    return len(item[1].effect.parameters())
+    return _size((item[1].effect,))
 
 
 def _best_pair(board, pool, u, z, settings, base_rmse, failures):
@@ -963,8 +963,7 @@ def _additions_and_exchanges(effects, warm, ranked, rmse, lighter, settings):
             if effect.mechanism in {e.mechanism for e in rest}:
                 continue
             kept = _without(warm, out)
-            lighter_one = len(effect.parameters()) < len(out.parameters())
-            bar = max(rmse, lighter) if lighter_one else rmse
+            bar = max(rmse, lighter) if _size((effect,)) < _size((out,)) else rmse
             yield (*rest, effect), _starts(kept, effect, params), bar
 
 
