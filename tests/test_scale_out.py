@@ -47,10 +47,11 @@ def test_grid_search_on_local_dask_cluster_matches_local_run():
     )  # fmt: skip
     with cluster, distributed.Client(cluster) as client:
         search, u, z = _search()
-        with joblib.parallel_backend("dask"):
+        with joblib.parallel_backend("dask"), distributed.get_task_stream(client) as stream:
             remote = _fit(search, u, z)
-        workers = client.scheduler_info()["workers"]
-    assert len(workers) == 2
+        n_threads = client.nthreads()  # asks the scheduler; scheduler_info() may be a stale cache
+    assert len(n_threads) == 2
+    assert len(stream.data) >= len(GAMMAS) * 2  # every (gamma, fold) fit ran on the cluster
     _assert_same_search(remote, local)
 
 
