@@ -36,6 +36,7 @@ __all__ = [
     "DictionaryTerm",
     "Effect",
     "Friction",
+    "InputLag",
     "InputSaturation",
     "Leak",
     "OutputOffset",
@@ -1244,6 +1245,93 @@ class Backlash(Effect):
         return (
             "the transmission has play (backlash): the load follows the input only once "
             "the input has crossed the play"
+        )
+
+
+class InputLag(Effect):
+    r"""Input ``input`` reaches the plant through a first-order lag (actuator dynamics).
+
+    A drive's amplifier, a valve's positioner, a heater's element: the actuator's output
+    :math:`p` follows the command with a time constant :math:`\tau` that the declared
+    physics leaves out. Held over each sample (zero-order hold), exactly,
+
+    .. math::
+
+        p_{k+1} = p_k + \alpha\,(u_k - p_k), \qquad
+        \tilde u_k = p_k + \beta\,(u_k - p_k), \qquad
+        \alpha = 1 - e^{-T_s/\tau}, \quad \beta = 1 - \frac{\tau}{T_s}\,\alpha,
+
+    where :math:`\tilde u_k`, what the declared step sees, is the lag's mean over the
+    sample. As :math:`\tau \to 0` it is the command itself (the declared model), so a fit
+    started at a short lag starts near the declared model. Parameter
+    ``{name}_time_constant`` (:math:`\tau > 0`, in the effects' unit of time,
+    :func:`time_step`, like ``sampling_time`` :math:`T_s`); hidden state
+    ``{name}_output`` (:math:`p`, started at ``initial``, the actuator settled at the
+    first command, and estimated with the initial state).
+    """
+
+    target = "hidden"
+
+    def __init__(
+        self,
+        input: int,
+        time_constant: float,
+        *,
+        sampling_time: float = 1.0,
+        initial: float = 0.0,
+        name: str = "lag",
+    ):
+        if not (np.isfinite(time_constant) and time_constant > 0):
+            raise ValueError(f"time_constant must be positive, got {time_constant!r}.")
+        if not (np.isfinite(sampling_time) and sampling_time > 0):
+            raise ValueError(f"sampling_time must be positive, got {sampling_time!r}.")
+        self.input, self.time_constant = int(input), float(time_constant)
+        self.sampling_time, self.initial, self.name = float(sampling_time), float(initial), name
+
+    @property
+    def hidden_states(self) -> tuple[str, ...]:
+        return (f"{self.name}_output",)
+
+    def parameters(self) -> dict[str, Parameter]:
+        return {f"{self.name}_time_constant": _positive(self.time_constant)}
+
+    @property
+    def mechanism(self) -> str:
+        """The dynamics of one input's actuator."""
+        return f"dynamics of input {self.input}"
+
+    def hidden_initial(self) -> tuple[float, ...]:
+        return (self.initial,)
+
+    def hidden_kinds(self, input_kinds) -> tuple[str, ...]:
+        return (input_kinds[self.input],)
+
+    def hidden_start(self, hidden, u, theta) -> tuple[float, ...]:
+        """The actuator settled at the first command."""
+        return (float(u[self.input]),)
+
+    def hidden_bounds(self, u) -> tuple[tuple[float, float], ...]:
+        r"""The record's input range widened by itself on each side (the lag's output is
+        an average of commands, :math:`[\min u - R,\ \max u + R]`); a constant input
+        bounds nothing."""
+        command = np.asarray(u, float)[:, self.input]
+        low, high = float(command.min()), float(command.max())
+        if not high > low:
+            return ((-np.inf, np.inf),)
+        return ((2 * low - high, 2 * high - low),)
+
+    def advance(self, hidden, u, theta):
+        ratio = theta[f"{self.name}_time_constant"] / self.sampling_time
+        alpha = -jnp.expm1(-1.0 / ratio)
+        beta = 1.0 - ratio * alpha
+        output, gap = hidden[0], u[self.input] - hidden[0]
+        seen = output + beta * gap
+        return u.at[self.input].set(seen), jnp.reshape(output + alpha * gap, (1,))
+
+    def describe(self, state_names, output_names, values=None) -> str:
+        return (
+            "the actuator lags its command: the input acts through a first-order lag "
+            "(its time constant fitted)"
         )
 
 

@@ -14,6 +14,7 @@ from sk_offwhite.datasets._cascaded_tanks import (
 )
 from sk_offwhite.datasets._coupling import make_clearance_coupling
 from sk_offwhite.datasets._electrical import make_diode_rc
+from sk_offwhite.datasets._lag import lagged_command, make_lagged_drive
 from sk_offwhite.datasets._mechanical import (
     make_coulomb_drive,
     make_dead_zone_motor,
@@ -39,6 +40,7 @@ from sk_offwhite.datasets._vehicle import vehicle_physics_known_registers
 
 __all__ = [
     "cascaded_tanks_physics",
+    "lagged_command",
     "load_cascaded_tanks",
     "make_backlash_servo",
     "make_cascaded_tanks",
@@ -50,6 +52,7 @@ __all__ = [
     "make_duffing_oscillator",
     "make_friction_oscillator",
     "make_heated_block",
+    "make_lagged_drive",
     "make_leaky_tank",
     "make_nonlinear_sensor_tank",
     "make_pendulum_drag",

@@ -6,6 +6,7 @@ the simulated states ``x_sim``, with the residual ``z - z_sim``:
 - :func:`simulation_metrics`: RMSE, NRMSE, fit %, R² and largest error per output;
 - :func:`whiteness_test`: is the residual white (autocorrelation, Ljung-Box)?
 - :func:`cross_correlation_test`: is it independent of past inputs?
+  (:func:`correlated_inputs`: the inputs it is not independent of);
 - :func:`residual_regions`: in which range of a state or input does it concentrate, with
   which sign?
 - :func:`range_violations`: measured ceilings/floors (saturations?) the model crosses;
@@ -20,6 +21,7 @@ Pure NumPy/SciPy; the inputs are never modified.
 from ._correlation import (
     CrossCorrelationResult,
     WhitenessResult,
+    correlated_inputs,
     cross_correlation_test,
     whiteness_test,
 )
@@ -37,6 +39,7 @@ __all__ = [
     "ResidualReport",
     "WhitenessResult",
     "analyse_residuals",
+    "correlated_inputs",
     "cross_correlation_test",
     "output_jumps",
     "range_violations",

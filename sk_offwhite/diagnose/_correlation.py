@@ -41,6 +41,7 @@ from ._arrays import (
 __all__ = [
     "CrossCorrelationResult",
     "WhitenessResult",
+    "correlated_inputs",
     "cross_correlation_test",
     "whiteness_test",
 ]
@@ -208,6 +209,26 @@ def cross_correlation_test(
         n_samples=int(signal.size),
         independent=bool(np.all(p_value[tested] >= 1.0 - confidence)),
     )
+
+
+def correlated_inputs(residual, u, max_lag: int = 25, confidence: float = 0.99) -> tuple[int, ...]:
+    """Indices of the inputs that some column of ``residual`` correlates with.
+
+    :func:`cross_correlation_test` on each column (an output's residual, shape
+    ``(n_samples, n_outputs)`` or ``(n_samples,)``): an input is named when its
+    ``p_value`` is below ``1 - confidence`` for one of them. A column that is not finite
+    or is constant names none (there is nothing to test). A missing effect that acts
+    through an input's history (an actuator's lag) leaves such a correlation; a residual
+    independent of every input says the input reaches the model as it should.
+    """
+    columns = np.asarray(residual, float).reshape(len(residual), -1)
+    named: set[int] = set()
+    for column in columns.T:
+        if not (np.all(np.isfinite(column)) and np.ptp(column) > 0):
+            continue
+        result = cross_correlation_test(column, u, max_lag, confidence)
+        named |= {int(j) for j in np.flatnonzero(result.p_value < 1.0 - confidence)}
+    return tuple(sorted(named))
 
 
 def _checked_signal(residual) -> np.ndarray:

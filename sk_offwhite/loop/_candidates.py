@@ -16,6 +16,9 @@ only where they make physical sense for the variables' kinds
   a clearance, a diode);
 * inputs that are positions or angles: play in the transmission
   (:class:`~sk_offwhite.Backlash`, an effect with a hidden state);
+* inputs the simulation residual correlates with
+  (:func:`~sk_offwhite.diagnose.correlated_inputs`): a first-order lag of their actuator
+  (:class:`~sk_offwhite.InputLag`, a hidden state too);
 * measured states: a sensor offset and a sensor calibration (offset, gain, curvature:
   :class:`~sk_offwhite.SensorCalibration`); measured ceilings: an output saturation;
   repeated one-sample jumps of a measured output at one level
@@ -47,6 +50,7 @@ from .._effects import (
     DifferenceDeadZone,
     Effect,
     Friction,
+    InputLag,
     InputSaturation,
     Leak,
     OutputOffset,
@@ -301,6 +305,23 @@ def _transmissions(hypothesis, u, input_names, kinds: Kinds) -> list[Candidate]:
     return out
 
 
+def _lags(hypothesis, u, input_names, dt: float, correlated) -> list[Candidate]:
+    """A first-order lag of the actuator of each input in ``correlated`` that varies
+    (:class:`~sk_offwhite.InputLag`), its time constant started at one sample (``dt``,
+    the effects' unit of time) and its output settled at the first command. Proposed
+    whatever variables the hypothesis names, as the play (an effect with memory is no
+    function of them), but only for an input the residual correlates with: a lag's
+    effect is, to first order, a linear function of the input's history."""
+    out = []
+    for j, n in enumerate(input_names):
+        if j not in correlated or not np.ptp(u[:, j]) > 0:
+            continue
+        effect = InputLag(j, dt, sampling_time=dt, initial=float(u[0, j]), name=f"lag_{n}")
+        reason = f"{hypothesis.sentence} The actuator of {n} may lag its command."
+        out.append(Candidate(effect, reason))
+    return out
+
+
 def _slug(text: str) -> str:
     return re.sub(r"[^0-9A-Za-z]+", "_", text).strip("_") or "term"
 
@@ -458,6 +479,7 @@ def propose_effects(
     dt: float = 1.0,
     outputs=None,
     jumps=(),
+    correlated_inputs=(),
 ) -> list[Candidate]:
     """Candidate effects (list of :class:`Candidate`), one per effect name, by evidence.
 
@@ -488,6 +510,9 @@ def propose_effects(
     jumps : sequence of OutputJump, default=()
         From :func:`~sk_offwhite.diagnose.output_jumps`: a step in the reading of each
         output that jumps.
+    correlated_inputs : sequence of int, default=()
+        From :func:`~sk_offwhite.diagnose.correlated_inputs` on the baseline's
+        simulation residual: a lag of each of these inputs' actuators.
     """
     names, output_names = tuple(state_names), list(output_names)
     states = np.asarray(states, float)
@@ -502,6 +527,7 @@ def propose_effects(
         if u_arr is not None:
             found += _actuators(hypothesis, u_arr, tuple(input_names), kinds)
             found += _transmissions(hypothesis, u_arr, tuple(input_names), kinds)
+            found += _lags(hypothesis, u_arr, tuple(input_names), dt, correlated_inputs)
         u_rows = np.zeros((len(states), 0)) if u_arr is None else u_arr
         proposals += [
             Candidate(_fitted_start(c.effect, hypothesis, states, u_rows, dt), c.reason)

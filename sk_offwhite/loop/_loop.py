@@ -68,7 +68,14 @@ from .._physics import Parameter, measured_states
 from .._radial import RadialBasis
 from .._validation import check_record
 from ..certify import identifiability
-from ..diagnose import OutputJump, RangeViolation, analyse_residuals, output_jumps, range_violations
+from ..diagnose import (
+    OutputJump,
+    RangeViolation,
+    analyse_residuals,
+    correlated_inputs,
+    output_jumps,
+    range_violations,
+)
 from ._candidates import Candidate, promoted_terms, propose_effects, unique_by_name
 from ._gauge import fit_undetermined_directions, held_note, held_parameters, holding
 from ._hypotheses import evidence_hypotheses, form_hypotheses
@@ -1015,7 +1022,7 @@ def _empty_delta(est) -> bool:
     return est.library is not None and est.n_nonzero_ == 0
 
 
-def _candidates(physics, library, hypotheses, facts, run, u, settings):
+def _candidates(physics, library, hypotheses, facts, run, u, z, settings):
     """Catalogue effects and promoted dictionary terms, one per name, without those of a
     mechanism the physics already models (:func:`_not_modelled`)."""
     dt = time_step(physics)
@@ -1033,6 +1040,7 @@ def _candidates(physics, library, hypotheses, facts, run, u, settings):
         dt=dt,
         outputs=run.outputs,
         jumps=[fact for fact in facts if isinstance(fact, OutputJump)],
+        correlated_inputs=correlated_inputs(z - run.outputs, u),
     )
     declared = [
         Candidate(law, f"{law.parameter} is declared relaxable (fixed at {law.value:g})")
@@ -1318,7 +1326,7 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
                 fits["with_delta"][0], u, fits["with_delta"][2], declared_cv, settings, notes
             )
     with _stage(clock, "effect selection", settings):
-        candidates = _candidates(start, library, hypotheses, facts, run, u, settings)
+        candidates = _candidates(start, library, hypotheses, facts, run, u, z, settings)
         effects, trail, singles, warm, set_fits = _select_effects(
             start, candidates, u, z, settings, _rmse(run.outputs, z), failures, declared_cv
         )
