@@ -1,10 +1,7 @@
 """InputLag, an actuator's first-order lag with a hidden state: the law, its units, the
 lagged-drive generator, where the loop proposes it (inputs the residual correlates with),
-and a direct fit.
-
-The closed loop on the lagged drive (the lag named and added alone, the declared
-parameters and the time constant recovered) runs in ``benchmarks/bench_loop_generators.py``
-(row ``lagged_drive``): it takes minutes, not seconds.
+a direct fit, and the closed loop on a short record (the full-length run is the
+``lagged_drive`` row of ``benchmarks/bench_loop_generators.py``).
 """
 
 import jax
@@ -17,6 +14,7 @@ from sk_offwhite._kinds import Kinds
 from sk_offwhite.datasets import lagged_command, make_lagged_drive
 from sk_offwhite.datasets._lag import DRIVE_DT, DRIVE_LAG, DRIVE_THETA
 from sk_offwhite.diagnose import correlated_inputs
+from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 from sk_offwhite.loop._candidates import propose_effects
 from sk_offwhite.loop._hypotheses import Hypothesis
 
@@ -165,3 +163,17 @@ def test_fitting_the_lag_recovers_the_time_constant_and_the_motor(drive):
     lagged = np.ravel(est.predict(drive.u_val, z_init=window)) - drive.z_val[:, 0]
     plain = np.ravel(declared.predict(drive.u_val, z_init=window)) - drive.z_val[:, 0]
     assert np.sqrt(np.mean(lagged**2)) < 0.15 * np.sqrt(np.mean(plain**2))
+
+
+def test_the_loop_names_the_lag_and_recovers_the_motor():
+    data = make_lagged_drive(n_samples=400, random_state=0)
+    settings = LoopSettings(n_folds=2, max_iter=100, fit_delta=False, max_candidates=6)
+    result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=settings)
+    assert [type(e) for e in result.effects] == [InputLag] and result.failures == []
+    fitted = result.final.parameters_
+    assert fitted["lag_u_time_constant"] == pytest.approx(DRIVE_LAG, rel=0.05)
+    for name, value in DRIVE_THETA.items():
+        assert fitted[name] == pytest.approx(value, rel=0.05), name
+    rows = score_models(result, {"validation": (data.u_val, data.z_val)})
+    rmse = {r["model"]: r["rmse"] for r in rows if r["protocol"] == "init_window"}
+    assert rmse["augmented physics"] < 0.2 * rmse["declared physics"], rmse
