@@ -13,6 +13,7 @@ from sk_offwhite import GreyBoxSparseRegressor, InputLag, augment, switched
 from sk_offwhite._kinds import Kinds
 from sk_offwhite.datasets import lagged_command, make_lagged_drive
 from sk_offwhite.datasets._lag import DRIVE_DT, DRIVE_LAG, DRIVE_THETA
+from sk_offwhite.datasets._synthetic import _first_order_physics, motor_rhs
 from sk_offwhite.diagnose import correlated_inputs
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 from sk_offwhite.loop._candidates import propose_effects
@@ -163,6 +164,23 @@ def test_fitting_the_lag_recovers_the_time_constant_and_the_motor(drive):
     lagged = np.ravel(est.predict(drive.u_val, z_init=window)) - drive.z_val[:, 0]
     plain = np.ravel(declared.predict(drive.u_val, z_init=window)) - drive.z_val[:, 0]
     assert np.sqrt(np.mean(lagged**2)) < 0.15 * np.sqrt(np.mean(plain**2))
+
+
+def test_the_lag_fitted_in_milliseconds_is_the_lag_fitted_in_seconds(drive):
+    def fitted(scale):  # units of time per second
+        rates = {"a": 1.5 / scale, "b": 3.0 / scale}
+        names, kinds = ("omega", "u"), ("rate", "voltage")
+        physics = _first_order_physics(motor_rhs, rates, (0.0,), DRIVE_DT * scale, names, kinds)
+        lag = InputLag(0, DRIVE_DT * scale, sampling_time=DRIVE_DT * scale, name="lag_u")
+        est = GreyBoxSparseRegressor(augment(physics, lag), max_iter=100).fit(drive.u, drive.z)
+        return est.parameters_
+
+    seconds, milliseconds = fitted(1.0), fitted(1e3)
+    assert milliseconds["lag_u_time_constant"] == pytest.approx(
+        1e3 * seconds["lag_u_time_constant"], rel=1e-9
+    )
+    for name in ("a", "b"):
+        assert milliseconds[name] == pytest.approx(1e-3 * seconds[name], rel=1e-9)
 
 
 def test_the_loop_names_the_lag_and_recovers_the_motor():
