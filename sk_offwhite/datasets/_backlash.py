@@ -12,6 +12,7 @@ from sk_offwhite.datasets._common import (
     _check_n_samples,
     _gaussian,
     _gaussian_noise,
+    _memory_effect,
     _multisine,
     _noise_stds,
     _rollout,
@@ -116,19 +117,15 @@ def make_backlash_servo(
         _servo_record(rng, n, stds) for _ in range(2)
     )
     contribution = SERVO_DT * SERVO_THETA["k"] * (played[:-1] - est[0][:-1, 0])
-    kinds = {key: tuple(value) for key, value in SERVO_KINDS.items()}
-    hidden = {
-        "target": "input",
-        "equation": 1,
-        "variables": ("u",),
-        "sign": int(np.sign(np.sum(contribution * est[1][:-1, 1]))),
-        "description": "The motor drives the load through a play of half-width 0.05 rad.",
-        "rates": {"backlash": SERVO_WIDTH},
-        "contribution": contribution,
-        "played": played,
-        "played_val": played_val,
-        "kinds": kinds,
-    }
+    hidden = _memory_effect(
+        1,
+        contribution,
+        est[1][:-1, 1],
+        "The motor drives the load through a play of half-width 0.05 rad.",
+        {"backlash": SERVO_WIDTH},
+        {"played": played, "played_val": played_val},
+        SERVO_KINDS,
+    )
     return _bunch(
         _servo_physics({"k": 300.0, "c": 6.0}),
         (est, val),
@@ -141,5 +138,5 @@ def make_backlash_servo(
         "half-width 0.05 rad, k=400 1/s^2, c=8 1/s, Euler dt=5 ms, load angle measured; "
         "the physics has p = u.\n",
         sampling_time=SERVO_DT,
-        kinds=dict(kinds),
+        kinds=dict(hidden["kinds"]),
     )

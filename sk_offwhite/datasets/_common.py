@@ -179,6 +179,24 @@ def printable(library):
     return library
 
 
+def _memory_effect(equation, contribution, state, description, rates, realised, kinds) -> dict:
+    """``hidden_effect`` of an effect with memory on the input (a play, a lag): no function
+    of the state and input, so its realised ``contribution`` to equation ``equation``
+    along the estimation record's ``state`` (which signs it) and the ``realised`` inputs
+    the plant saw (by name) instead of a function."""
+    return {
+        "target": "input",
+        "equation": equation,
+        "variables": ("u",),
+        "sign": int(np.sign(np.sum(contribution * state))),
+        "description": description,
+        "rates": rates,
+        "contribution": contribution,
+        **realised,
+        "kinds": {key: tuple(value) for key, value in kinds.items()},
+    }
+
+
 def _bunch(physics, records, theta, x0s, effect, library, noise, descr, **extra) -> Bunch:
     (u, x, z), (u_val, x_val, z_val) = records
     return Bunch(

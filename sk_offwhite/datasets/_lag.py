@@ -10,6 +10,7 @@ from sk_offwhite.datasets._common import (
     _check_n_samples,
     _gaussian,
     _gaussian_noise,
+    _memory_effect,
     _multisine,
     _noise_stds,
     _rollout,
@@ -120,19 +121,15 @@ def make_lagged_drive(
         _drive_record(rng, n, stds) for _ in range(2)
     )
     contribution = DRIVE_DT * DRIVE_THETA["b"] * (seen[:-1] - est[0][:-1, 0])
-    kinds = {key: tuple(value) for key, value in DRIVE_KINDS.items()}
-    hidden = {
-        "target": "input",
-        "equation": 0,
-        "variables": ("u",),
-        "sign": int(np.sign(np.sum(contribution * est[1][:-1, 0]))),
-        "description": "The amplifier delivers the command through a lag of 0.15 s.",
-        "rates": {"time_constant": DRIVE_LAG},
-        "contribution": contribution,
-        "seen": seen,
-        "seen_val": seen_val,
-        "kinds": kinds,
-    }
+    hidden = _memory_effect(
+        0,
+        contribution,
+        est[1][:-1, 0],
+        "The amplifier delivers the command through a lag of 0.15 s.",
+        {"time_constant": DRIVE_LAG},
+        {"seen": seen, "seen_val": seen_val},
+        DRIVE_KINDS,
+    )
     return _bunch(
         _drive_physics(DRIVE_GUESS),
         (est, val),
@@ -145,5 +142,5 @@ def make_lagged_drive(
         "the command u with tau=0.15 s, a=2 1/s, b=4 rad/(V s^2), Euler dt=0.05 s, speed "
         "measured; the physics has p = u.\n",
         sampling_time=DRIVE_DT,
-        kinds=dict(kinds),
+        kinds=dict(hidden["kinds"]),
     )
