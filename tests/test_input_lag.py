@@ -11,7 +11,7 @@ import pytest
 
 from sk_offwhite import GreyBoxSparseRegressor, InputLag, augment, switched
 from sk_offwhite._kinds import Kinds
-from sk_offwhite.datasets import lagged_command, make_lagged_drive
+from sk_offwhite.datasets import lagged_command, make_lagged_drive, make_lagged_heater
 from sk_offwhite.datasets._lag import DRIVE_DT, DRIVE_LAG, DRIVE_THETA
 from sk_offwhite.datasets._synthetic import _first_order_physics, motor_rhs
 from sk_offwhite.diagnose import correlated_inputs
@@ -119,6 +119,23 @@ def test_the_generator_drives_the_motor_with_the_lagged_command():
     assert data.hidden_effect["rates"] == {"time_constant": DRIVE_LAG}
     with pytest.raises(ValueError, match="noise_std"):
         make_lagged_drive(n_samples=10, noise_std=-1.0)
+
+
+def test_the_heater_generator_heats_the_block_with_the_lagged_power():
+    data = make_lagged_heater(n_samples=300, random_state=2, noise_std=0.0)
+    seen = data.hidden_effect["seen"]
+    np.testing.assert_array_equal(seen, lagged_command(data.u[:, 0], 30.0, data.sampling_time))
+    assert data.u.min() >= 0.0 and data.x[0, 0] == pytest.approx(295.0 + 45.0 / 2.5)
+    with jax.enable_x64(True):
+        theta = {k: jnp.asarray(v) for k, v in data.true_parameters.items()}
+        step = jax.vmap(data.physics.step, in_axes=(0, 0, None))
+        predicted = np.asarray(step(jnp.asarray(data.x[:-1]), jnp.asarray(seen[:-1, None]), theta))
+    np.testing.assert_allclose(predicted, data.x[1:], rtol=1e-13)
+    capacity = data.true_parameters["capacity"]
+    contribution = data.sampling_time * (seen[:-1] - data.u[:-1, 0]) / capacity
+    np.testing.assert_allclose(data.hidden_effect["contribution"], contribution)
+    assert data.kinds == {"states": ("temperature",), "inputs": ("generic",)}
+    assert data.hidden_effect["rates"] == {"time_constant": 30.0}
 
 
 def test_a_lag_is_proposed_for_each_input_the_residual_correlates_with_that_varies():

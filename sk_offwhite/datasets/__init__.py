@@ -14,7 +14,7 @@ from sk_offwhite.datasets._cascaded_tanks import (
 )
 from sk_offwhite.datasets._coupling import make_clearance_coupling
 from sk_offwhite.datasets._electrical import make_diode_rc
-from sk_offwhite.datasets._lag import lagged_command, make_lagged_drive
+from sk_offwhite.datasets._lag import lagged_command, make_lagged_drive, make_lagged_heater
 from sk_offwhite.datasets._mechanical import (
     make_coulomb_drive,
     make_dead_zone_motor,
@@ -53,6 +53,7 @@ __all__ = [
     "make_friction_oscillator",
     "make_heated_block",
     "make_lagged_drive",
+    "make_lagged_heater",
     "make_leaky_tank",
     "make_nonlinear_sensor_tank",
     "make_pendulum_drag",

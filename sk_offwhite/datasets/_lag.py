@@ -1,6 +1,10 @@
-"""A motor driven through an amplifier that lags its command: actuator dynamics left out."""
+"""Plants whose actuator lags its command (a drive's amplifier, a heating element): the
+actuator's dynamics, which the declared physics leaves out."""
 
 from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 from sklearn.utils import Bunch, check_random_state
@@ -16,13 +20,23 @@ from sk_offwhite.datasets._common import (
     _rollout,
 )
 from sk_offwhite.datasets._synthetic import _first_order_physics, motor_rhs
+from sk_offwhite.datasets._thermal import (
+    HEATER_DT,
+    HEATER_MEAN,
+    HEATER_STD,
+    HEATER_THETA,
+    _heated_block_physics,
+)
 
-__all__ = ["lagged_command", "make_lagged_drive"]
+__all__ = ["lagged_command", "make_lagged_drive", "make_lagged_heater"]
 
 DRIVE_THETA = {"a": 2.0, "b": 4.0}
 DRIVE_GUESS = {"a": 1.5, "b": 3.0}
 DRIVE_LAG, DRIVE_DT, DRIVE_INPUT_STD, DRIVE_BAND = 0.15, 0.05, 0.8, 0.03
 DRIVE_KINDS = {"states": ("rate",), "inputs": ("voltage",)}
+HEATER_LAG, HEATER_BAND = 30.0, 0.01
+HEATER_GUESS = {"capacity": 600.0, "conductance": 2.0, "ambient": 290.0}
+HEATER_X0 = HEATER_THETA["ambient"] + HEATER_MEAN / HEATER_THETA["conductance"]
 
 
 def lagged_command(u, time_constant: float, sampling_time: float, start=None) -> np.ndarray:
@@ -48,21 +62,127 @@ def lagged_command(u, time_constant: float, sampling_time: float, start=None) ->
     return seen
 
 
+@dataclass(frozen=True)
+class _LaggedPlant:
+    r"""A first-order plant driven through a lag of its command: ``physics(values)`` the
+    declared model (started at ``x0``), ``gain`` the factor that turns the lag's error
+    :math:`\tilde u - u` into the state's rate, the command ``input_mean + input_std``
+    times a unit multisine of ``band`` cycles/sample, floored at ``input_floor``."""
+
+    physics: Callable
+    theta: dict
+    guess: dict
+    x0: float
+    gain: Callable
+    lag: float
+    dt: float
+    input_mean: float
+    input_std: float
+    input_floor: float
+    band: float
+    kinds: dict
+    description: str
+    process_target: str
+    descr: str
+
+
+def _lagged_record(plant: _LaggedPlant, rng, n: int, stds) -> tuple:
+    """One record: the command, the state (driven by the lagged command), the measured
+    state, and the realised noises and lagged commands."""
+    command = plant.input_mean + plant.input_std * _multisine(rng, n, plant.band)
+    u = np.maximum(command, plant.input_floor)[:, None]
+    seen = lagged_command(u[:, 0], plant.lag, plant.dt)
+    w = _gaussian(rng, (n - 1, 1), stds[1])
+    x0 = np.array([plant.x0])
+    x = _rollout(plant.physics(plant.theta), plant.theta, x0, seen[:, None], None, w)
+    e = _gaussian(rng, (n, 1), stds[0])
+    return (u, x, x + e), (e, w), seen
+
+
+def _lagged_dataset(plant: _LaggedPlant, n_samples, noise_std, random_state, process_noise_std):
+    """Estimation and validation records of ``plant``, as the generators return them."""
+    import pysindy as ps
+
+    n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
+    rng = check_random_state(random_state)
+    (est, est_noise, seen), (val, val_noise, seen_val) = (
+        _lagged_record(plant, rng, n, stds) for _ in range(2)
+    )
+    contribution = plant.dt * plant.gain(plant.theta) * (seen[:-1] - est[0][:-1, 0])
+    hidden = _memory_effect(
+        0,
+        contribution,
+        est[1][:-1, 0],
+        plant.description,
+        {"time_constant": plant.lag},
+        {"seen": seen, "seen_val": seen_val},
+        plant.kinds,
+    )
+    return _bunch(
+        plant.physics(plant.guess),
+        (est, val),
+        plant.theta,
+        (np.array([plant.x0]), np.array([plant.x0])),
+        hidden,
+        ps.PolynomialLibrary(degree=2),
+        _gaussian_noise(stds, (est_noise, val_noise), plant.process_target),
+        plant.descr,
+        sampling_time=plant.dt,
+        kinds=dict(hidden["kinds"]),
+    )
+
+
 def _drive_physics(values: dict):
     return _first_order_physics(
         motor_rhs, values, (0.0,), DRIVE_DT, ("omega", "u"), ("rate", "voltage")
     )
 
 
-def _drive_record(rng, n: int, stds) -> tuple:
-    """One record: the command, the motor speed (driven by the lagged command), the
-    measured speed, and the realised noises and lagged commands."""
-    u = DRIVE_INPUT_STD * _multisine(rng, n, DRIVE_BAND)[:, None]
-    seen = lagged_command(u[:, 0], DRIVE_LAG, DRIVE_DT)
-    w = _gaussian(rng, (n - 1, 1), stds[1])
-    x = _rollout(_drive_physics(DRIVE_THETA), DRIVE_THETA, np.zeros(1), seen[:, None], None, w)
-    e = _gaussian(rng, (n, 1), stds[0])
-    return (u, x, x + e), (e, w), seen
+_DRIVE = _LaggedPlant(
+    physics=_drive_physics,
+    theta=DRIVE_THETA,
+    guess=DRIVE_GUESS,
+    x0=0.0,
+    gain=lambda theta: theta["b"],
+    lag=DRIVE_LAG,
+    dt=DRIVE_DT,
+    input_mean=0.0,
+    input_std=DRIVE_INPUT_STD,
+    input_floor=-np.inf,
+    band=DRIVE_BAND,
+    kinds=DRIVE_KINDS,
+    description="The amplifier delivers the command through a lag of 0.15 s.",
+    process_target="speed equation",
+    descr="Motor omega' = -a omega + b p, p the amplifier's output, a first-order lag of "
+    "the command u with tau=0.15 s, a=2 1/s, b=4 rad/(V s^2), Euler dt=0.05 s, speed "
+    "measured; the physics has p = u.\n",
+)
+
+
+def _heater_gain(theta):
+    return 1.0 / theta["capacity"]
+
+
+_HEATER = _LaggedPlant(
+    physics=lambda values: _heated_block_physics(values, (HEATER_X0,)),
+    theta=HEATER_THETA,
+    guess=HEATER_GUESS,
+    x0=HEATER_X0,
+    gain=_heater_gain,
+    lag=HEATER_LAG,
+    dt=HEATER_DT,
+    input_mean=HEATER_MEAN,
+    input_std=HEATER_STD,
+    input_floor=0.0,
+    band=HEATER_BAND,
+    kinds={"states": ("temperature",), "inputs": ("generic",)},
+    description="The heating element delivers the commanded power through a lag of 30 s.",
+    process_target="temperature equation",
+    descr="Heated block C T' = p - G (T - T_a) [SI units: K, W, J/K, s], p the heating "
+    "element's output, a first-order lag of the commanded power P with tau=30 s, C=800 "
+    "J/K, G=2.5 W/K, T_a=295 K, Euler dt=2 s, temperature measured; the physics has "
+    "p = P.\n",
+)
 
 
 def make_lagged_drive(
@@ -113,34 +233,44 @@ def make_lagged_drive(
         ``u, z, u_val, z_val, x, x_val, physics, true_parameters, true_x0, true_x0_val,
         hidden_effect, suggested_library, noise, sampling_time, kinds, DESCR``.
     """
-    import pysindy as ps
+    return _lagged_dataset(_DRIVE, n_samples, noise_std, random_state, process_noise_std)
 
-    n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
-    rng = check_random_state(random_state)
-    (est, est_noise, seen), (val, val_noise, seen_val) = (
-        _drive_record(rng, n, stds) for _ in range(2)
-    )
-    contribution = DRIVE_DT * DRIVE_THETA["b"] * (seen[:-1] - est[0][:-1, 0])
-    hidden = _memory_effect(
-        0,
-        contribution,
-        est[1][:-1, 0],
-        "The amplifier delivers the command through a lag of 0.15 s.",
-        {"time_constant": DRIVE_LAG},
-        {"seen": seen, "seen_val": seen_val},
-        DRIVE_KINDS,
-    )
-    return _bunch(
-        _drive_physics(DRIVE_GUESS),
-        (est, val),
-        DRIVE_THETA,
-        (np.zeros(1), np.zeros(1)),
-        hidden,
-        ps.PolynomialLibrary(degree=2),
-        _gaussian_noise(stds, (est_noise, val_noise), "speed equation"),
-        "Motor omega' = -a omega + b p, p the amplifier's output, a first-order lag of "
-        "the command u with tau=0.15 s, a=2 1/s, b=4 rad/(V s^2), Euler dt=0.05 s, speed "
-        "measured; the physics has p = u.\n",
-        sampling_time=DRIVE_DT,
-        kinds=dict(hidden["kinds"]),
-    )
+
+def make_lagged_heater(
+    n_samples: int = 2000,
+    noise_std: float = 0.02,
+    random_state=None,
+    *,
+    process_noise_std: float = 0.0,
+) -> Bunch:
+    """Heated block whose physics assumes the heating element delivers its command at once.
+
+    The block of :func:`make_heated_block` (:math:`C \\dot T = p - G (T - T_a)`, SI units,
+    :math:`C` = 800 J/K, :math:`G` = 2.5 W/K, :math:`T_a` = 295 K, one explicit-Euler step of
+    :math:`\\Delta t` = 2 s per sample), heated by an element whose output :math:`p` is a
+    first-order lag of the commanded power ``P`` with time constant :math:`\tau` = 30 s
+    (its own heat capacity), integrated exactly over each held sample
+    (:func:`lagged_command`); no power limit. The block starts at its steady state for the
+    mean power (313 K) and the element settled at the first command. The physics has
+    :math:`p = P`. ``hidden_effect`` gives the realised contribution
+    :math:`\\Delta t (\tilde p_k - P_k) / C` and the lagged powers (``"seen"``,
+    ``"seen_val"``); ``hidden_effect["rates"]`` is ``{"time_constant": τ}``. Input: 45 W
+    plus a multisine of std 25 W over 0-0.0025 Hz (0.01 cycles/sample), floored at 0.
+
+    Parameters
+    ----------
+    n_samples : int, default=2000
+        Length of each record.
+    noise_std : float, default=0.02
+        Standard deviation (K) of the Gaussian temperature-sensor noise.
+    random_state : int, RandomState instance or None, default=None
+        Seed of the input and noise realisations.
+    process_noise_std : float, default=0.0
+        Standard deviation (K) of a Gaussian disturbance added to the temperature update.
+
+    Returns
+    -------
+    data : sklearn.utils.Bunch
+        As :func:`make_lagged_drive`.
+    """
+    return _lagged_dataset(_HEATER, n_samples, noise_std, random_state, process_noise_std)
