@@ -202,7 +202,9 @@ def test_the_lag_fitted_in_milliseconds_is_the_lag_fitted_in_seconds(drive):
 
 def test_the_loop_names_the_lag_and_recovers_the_motor():
     data = make_lagged_drive(n_samples=400, random_state=0)
-    settings = LoopSettings(n_folds=2, max_iter=100, fit_delta=False, max_candidates=6)
+    settings = LoopSettings(
+        n_folds=2, max_iter=100, fit_delta=False, max_candidates=6, max_effects=1
+    )
     result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=settings)
     assert [type(e) for e in result.effects] == [InputLag] and result.failures == []
     fitted = result.final.parameters_
