@@ -109,6 +109,17 @@ def _corner_parameters(effect) -> dict[str, Parameter]:
     return {f"{effect.name}_corner": _positive(effect.corner)} if effect.fit_corner else {}
 
 
+def _widened_range(u, index: int) -> tuple[float, float]:
+    r"""Column ``index`` of the record ``u``'s range widened by itself on each side,
+    :math:`[\min u - R,\ \max u + R]`, :math:`R = \max u - \min u` (unbounded for a
+    constant column): the bounds of a hidden state that follows an input."""
+    command = np.asarray(u, float)[:, index]
+    low, high = float(command.min()), float(command.max())
+    if not high > low:
+        return (-np.inf, np.inf)
+    return (2 * low - high, 2 * high - low)
+
+
 def _checked_corner(corner) -> float:
     corner = float(corner)
     if not (np.isfinite(corner) and corner > 0):
@@ -1225,11 +1236,7 @@ class Backlash(Effect):
         can run the start along that flat direction (measured on the servo:
         :math:`1.7\cdot10^{14}` rad, where doubles are 0.03 rad apart against a half-width
         of 0.05). A constant input (:math:`R = 0`) bounds nothing."""
-        command = np.asarray(u, float)[:, self.input]
-        low, high = float(command.min()), float(command.max())
-        if not high > low:
-            return ((-np.inf, np.inf),)
-        return ((2 * low - high, 2 * high - low),)
+        return (_widened_range(u, self.input),)
 
     def advance(self, hidden, u, theta):
         width, s = theta[f"{self.name}_width"], self.sharpness
@@ -1314,11 +1321,7 @@ class InputLag(Effect):
         r"""The record's input range widened by itself on each side (the lag's output is
         an average of commands, :math:`[\min u - R,\ \max u + R]`); a constant input
         bounds nothing."""
-        command = np.asarray(u, float)[:, self.input]
-        low, high = float(command.min()), float(command.max())
-        if not high > low:
-            return ((-np.inf, np.inf),)
-        return ((2 * low - high, 2 * high - low),)
+        return (_widened_range(u, self.input),)
 
     def advance(self, hidden, u, theta):
         ratio = theta[f"{self.name}_time_constant"] / self.sampling_time

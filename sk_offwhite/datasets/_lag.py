@@ -159,16 +159,12 @@ _DRIVE = _LaggedPlant(
 )
 
 
-def _heater_gain(theta):
-    return 1.0 / theta["capacity"]
-
-
 _HEATER = _LaggedPlant(
     physics=lambda values: _heated_block_physics(values, (HEATER_X0,)),
     theta=HEATER_THETA,
     guess=HEATER_GUESS,
     x0=HEATER_X0,
-    gain=_heater_gain,
+    gain=lambda theta: 1.0 / theta["capacity"],
     lag=HEATER_LAG,
     dt=HEATER_DT,
     input_mean=HEATER_MEAN,
