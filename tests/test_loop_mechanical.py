@@ -24,25 +24,28 @@ from sk_offwhite.loop import LoopSettings, close_the_loop, score_models, write_r
 SETTINGS = LoopSettings(n_folds=2, max_iter=100, fit_delta=False, max_candidates=6)
 
 SYSTEMS = {
-    "drive": (make_coulomb_drive, 2000, Friction, "friction_v_coulomb", "coulomb"),
-    "duffing": (make_duffing_oscillator, 1500, Stiffness, "stiffness_y_coefficient", "cubic"),
-    "pendulum": (
-        make_pendulum_drag,
-        1500,
-        QuadraticDrag,
-        "drag_omega_coefficient",
-        "quadratic_drag",
-    ),
-    "dead_zone": (make_dead_zone_motor, 800, DeadZone, "dead_zone_u_width", "dead_zone"),
+    "drive": (make_coulomb_drive, 2000, Friction, "coulomb", "coulomb"),
+    "duffing": (make_duffing_oscillator, 1500, Stiffness, "coefficient", "cubic"),
+    "pendulum": (make_pendulum_drag, 1500, QuadraticDrag, "coefficient", "quadratic_drag"),
+    "dead_zone": (make_dead_zone_motor, 800, DeadZone, "width", "dead_zone"),
 }
+"""Generator, record length, the effect's kind, the fitted parameter (``{effect}_{suffix}``)
+and the generator's rate it must match."""
 
 
 @pytest.fixture(scope="module", params=sorted(SYSTEMS))
 def run(request):
-    make, n, kind, parameter, rate = SYSTEMS[request.param]
+    make, n, kind, suffix, rate = SYSTEMS[request.param]
     data = make(n_samples=n, random_state=0)
     result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=SETTINGS)
-    return data, result, kind, parameter, rate
+    return data, result, kind, _parameter_of(result, kind, suffix), rate
+
+
+def _parameter_of(result, kind, suffix: str) -> str | None:
+    """The name of the fitted parameter ``suffix`` of the added effect of ``kind`` (a
+    refinement, such as the Stribeck friction, keeps its effect's kind under a longer name)."""
+    added = [effect for effect in result.effects if isinstance(effect, kind)]
+    return f"{added[0].name}_{suffix}" if added else None
 
 
 def test_the_hidden_effect_is_named_and_added(run):
@@ -63,6 +66,11 @@ def test_parameters_are_recovered_within_five_percent(run):
     np.testing.assert_allclose(fitted[parameter], data.hidden_effect["rates"][rate], rtol=0.05)
     for name, value in data.true_parameters.items():
         np.testing.assert_allclose(fitted[name], value, rtol=0.05, err_msg=name)
+    # a Stribeck refinement of the friction is the truth only if its peak over the Coulomb
+    # level is small (the generator has none); which of the two wins is a near tie in CV
+    stribeck = parameter.replace("_coulomb", "_stribeck")
+    if stribeck != parameter and stribeck in fitted:
+        assert fitted[stribeck] < 0.05 * fitted[parameter]
 
 
 def test_validation_error_is_cut_and_the_choice_is_never_worse(run):

@@ -366,3 +366,7 @@ def test_the_chosen_fit_is_the_better_of_two_starts(path):
     assert penalised_objective(good) >= good.fit_error_**2
     without_cv = _quiet(fit_gamma_path, _estimator(), u, z, n_gammas=3)
     assert without_cv.start == "continuation"  # nothing scored a fit from the reference
+    # asked for, the two starts run without CV too, and never end above the continuation
+    restarted = _quiet(fit_gamma_path, _estimator(), u, z, n_gammas=3, restart=True)
+    assert restarted.start in ("continuation", "reference")
+    assert penalised_objective(restarted.estimator) <= penalised_objective(without_cv.estimator)
