@@ -16,7 +16,9 @@ from sk_offwhite.datasets import make_heated_block
 from sk_offwhite.datasets._thermal import _heated_block_physics
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 
-SETTINGS = LoopSettings(n_folds=2, max_iter=100, fit_delta=False, max_candidates=6)
+SETTINGS = LoopSettings(
+    n_folds=2, max_iter=100, fit_delta=False, max_candidates=6, max_effects=1
+)  # one effect hidden: what is tested is the choice among the candidates
 
 
 @pytest.fixture(scope="module")
