@@ -83,7 +83,7 @@ def test_the_path_with_worker_folds_is_the_path_in_one_process(tank):
 def test_the_loop_with_workers_chooses_and_scores_as_in_one_process(tank):
     def loop(n_jobs, share_programs):
         settings = LoopSettings(
-            n_folds=2, max_iter=40, max_effects=2, max_candidates=4, fit_delta=False,
+            n_folds=2, max_iter=40, max_effects=1, max_candidates=4, fit_delta=False,
             n_jobs=n_jobs, share_programs=share_programs,
         )  # fmt: skip
         return close_the_loop(tank.physics, None, tank.u, tank.z, settings=settings)
