@@ -117,6 +117,7 @@ def test_the_generator_drives_the_motor_with_the_lagged_command():
     np.testing.assert_allclose(data.hidden_effect["contribution"], contribution)
     assert data.kinds == {"states": ("rate",), "inputs": ("voltage",)}
     assert data.hidden_effect["rates"] == {"time_constant": DRIVE_LAG}
+    assert data.hidden_effect["variables"] == ("u",)
     with pytest.raises(ValueError, match="noise_std"):
         make_lagged_drive(n_samples=10, noise_std=-1.0)
 
@@ -136,6 +137,7 @@ def test_the_heater_generator_heats_the_block_with_the_lagged_power():
     np.testing.assert_allclose(data.hidden_effect["contribution"], contribution)
     assert data.kinds == {"states": ("temperature",), "inputs": ("generic",)}
     assert data.hidden_effect["rates"] == {"time_constant": 30.0}
+    assert data.hidden_effect["variables"] == ("P",)  # the physics' name of the input
 
 
 def test_a_lag_is_proposed_for_each_input_the_residual_correlates_with_that_varies():

@@ -179,15 +179,17 @@ def printable(library):
     return library
 
 
-def _memory_effect(equation, contribution, state, description, rates, realised, kinds) -> dict:
-    """``hidden_effect`` of an effect with memory on the input (a play, a lag): no function
-    of the state and input, so its realised ``contribution`` to equation ``equation``
-    along the estimation record's ``state`` (which signs it) and the ``realised`` inputs
-    the plant saw (by name) instead of a function."""
+def _memory_effect(
+    equation, contribution, state, description, rates, realised, kinds, variables=("u",)
+) -> dict:
+    """``hidden_effect`` of an effect with memory on the input named ``variables`` (a play,
+    a lag): no function of the state and input, so its realised ``contribution`` to
+    equation ``equation`` along the estimation record's ``state`` (which signs it) and the
+    ``realised`` inputs the plant saw (by name) instead of a function."""
     return {
         "target": "input",
         "equation": equation,
-        "variables": ("u",),
+        "variables": tuple(variables),
         "sign": int(np.sign(np.sum(contribution * state))),
         "description": description,
         "rates": rates,

@@ -109,6 +109,7 @@ def _lagged_dataset(plant: _LaggedPlant, n_samples, noise_std, random_state, pro
         _lagged_record(plant, rng, n, stds) for _ in range(2)
     )
     contribution = plant.dt * plant.gain(plant.theta) * (seen[:-1] - est[0][:-1, 0])
+    physics = plant.physics(plant.guess)
     hidden = _memory_effect(
         0,
         contribution,
@@ -117,9 +118,10 @@ def _lagged_dataset(plant: _LaggedPlant, n_samples, noise_std, random_state, pro
         {"time_constant": plant.lag},
         {"seen": seen, "seen_val": seen_val},
         plant.kinds,
+        physics.input_names,
     )
     return _bunch(
-        plant.physics(plant.guess),
+        physics,
         (est, val),
         plant.theta,
         (np.array([plant.x0]), np.array([plant.x0])),
