@@ -3,6 +3,7 @@
 from ._backend import enable_fused_loops
 from ._basis import RidgeBasis, compile_basis
 from ._cache import enable_compilation_cache, release_compiled_programs, release_package_programs
+from ._delay import InputDelay
 from ._effects import (
     AdditiveEffect,
     Backlash,
@@ -53,6 +54,7 @@ __all__ = [
     "Friction",
     "GammaPath",
     "GreyBoxSparseRegressor",
+    "InputDelay",
     "InputLag",
     "InputSaturation",
     "Leak",

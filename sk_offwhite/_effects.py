@@ -143,6 +143,10 @@ class Effect:
     whatever the order the effects are given in (:class:`SensorStep`)."""
     hidden_states: tuple[str, ...] = ()
     """Names of the hidden states the effect carries (see :mod:`sk_offwhite._hidden`)."""
+    hidden_free = True
+    """Whether the hidden states' initial values are estimated with the initial state;
+    ``False``: each record starts them where :meth:`hidden_start` puts them (the past
+    commands of a dead time, which only the record's first samples see)."""
 
     def parameters(self) -> dict[str, Parameter]:
         """The effect's own parameters, with initial values and bounds."""

@@ -13,7 +13,9 @@ hidden states :math:`h` of its own, appended after the declared states,
 where :math:`a` is the effect's ``advance``: it turns the input the plant receives into the
 one the declared step sees and updates its memory. The declared step, output map and
 constraints see only :math:`x`; the hidden states' initial values are estimated with the
-declared ones (they are ordinary, free entries of :math:`x_0`).
+declared ones (they are ordinary, free entries of :math:`x_0`), unless the effect fixes
+them (``Effect.hidden_free = False``: each record starts them where the effect's
+``hidden_start`` puts them).
 """
 
 from __future__ import annotations
@@ -70,7 +72,9 @@ class HiddenStateStep:
 def hidden_start(step, x0, u_first, theta: dict, fixed=None) -> np.ndarray:
     """``x0`` (a record's initial-state guess) with each effect's hidden states where a
     record whose first input is ``u_first`` starts them (:meth:`Effect.hidden_start`);
-    entries marked in ``fixed`` and models without hidden states are left as they are."""
+    entries marked in ``fixed`` and models without hidden states are left as they are,
+    but for the states of an effect that fixes them (``hidden_free`` false), which are
+    always started there."""
     x0 = np.array(x0, dtype=float)
     if not isinstance(step, HiddenStateStep):
         return x0
@@ -78,7 +82,7 @@ def hidden_start(step, x0, u_first, theta: dict, fixed=None) -> np.ndarray:
     keep = np.zeros(x0.shape, bool) if fixed is None else np.asarray(fixed, bool)
     for effect, part in step.slices():
         moved = np.asarray(effect.hidden_start(x0[part], u_first, theta), float)
-        x0[part] = np.where(keep[part], x0[part], moved)
+        x0[part] = np.where(keep[part] & effect.hidden_free, x0[part], moved)
     return x0
 
 
@@ -148,7 +152,8 @@ def with_hidden_states(model, physics, hidden: tuple, new: tuple) -> None:
     model.inequality = _declared_only(physics.inequality, n_declared)
     model.equality = _declared_only(physics.equality, n_declared)
     model.x0 = np.concatenate([physics.x0, np.clip(initial, low, high)])
-    model.x0_fixed = np.concatenate([physics.x0_fixed, np.zeros(len(added), bool)])
+    fixed = [not effect.hidden_free for effect, _ in added]
+    model.x0_fixed = np.concatenate([physics.x0_fixed, np.asarray(fixed, bool)])
     model.state_names = tuple(physics.state_names) + tuple(name for _, name in added)
     kinds = [kind for effect in new for kind in effect.hidden_kinds(physics.input_kinds)]
     model.state_kinds = tuple(physics.state_kinds) + tuple(kinds)

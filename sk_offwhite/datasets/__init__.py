@@ -6,6 +6,7 @@ physics misses one effect (the ``hidden_effect`` of the returned Bunch), for che
 sparse black-box correction finds what the physics is missing.
 """
 
+from sk_offwhite._delay import delayed_command
 from sk_offwhite.datasets._backlash import make_backlash_servo, play
 from sk_offwhite.datasets._cascaded_tanks import (
     cascaded_tanks_physics,
@@ -14,7 +15,13 @@ from sk_offwhite.datasets._cascaded_tanks import (
 )
 from sk_offwhite.datasets._coupling import make_clearance_coupling
 from sk_offwhite.datasets._electrical import make_diode_rc
-from sk_offwhite.datasets._lag import lagged_command, make_lagged_drive, make_lagged_heater
+from sk_offwhite.datasets._lag import (
+    lagged_command,
+    make_delayed_drive,
+    make_delayed_heater,
+    make_lagged_drive,
+    make_lagged_heater,
+)
 from sk_offwhite.datasets._mechanical import (
     make_coulomb_drive,
     make_dead_zone_motor,
@@ -40,6 +47,7 @@ from sk_offwhite.datasets._vehicle import vehicle_physics_known_registers
 
 __all__ = [
     "cascaded_tanks_physics",
+    "delayed_command",
     "lagged_command",
     "load_cascaded_tanks",
     "make_backlash_servo",
@@ -52,6 +60,8 @@ __all__ = [
     "make_duffing_oscillator",
     "make_friction_oscillator",
     "make_heated_block",
+    "make_delayed_drive",
+    "make_delayed_heater",
     "make_lagged_drive",
     "make_lagged_heater",
     "make_leaky_tank",

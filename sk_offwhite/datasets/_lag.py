@@ -1,14 +1,16 @@
-"""Plants whose actuator lags its command (a drive's amplifier, a heating element): the
-actuator's dynamics, which the declared physics leaves out."""
+"""Plants whose command reaches them late: an actuator that lags its command (a drive's
+amplifier, a heating element) or a dead time (heat carried along a pipe, a command sent
+over a network), which the declared physics leaves out."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from sklearn.utils import Bunch, check_random_state
 
+from sk_offwhite._delay import delayed_command
 from sk_offwhite.datasets._common import (
     _bunch,
     _check_n_samples,
@@ -28,7 +30,13 @@ from sk_offwhite.datasets._thermal import (
     _heated_block_physics,
 )
 
-__all__ = ["lagged_command", "make_lagged_drive", "make_lagged_heater"]
+__all__ = [
+    "lagged_command",
+    "make_delayed_drive",
+    "make_delayed_heater",
+    "make_lagged_drive",
+    "make_lagged_heater",
+]
 
 DRIVE_THETA = {"a": 2.0, "b": 4.0}
 DRIVE_GUESS = {"a": 1.5, "b": 3.0}
@@ -37,6 +45,7 @@ DRIVE_KINDS = {"states": ("rate",), "inputs": ("voltage",)}
 HEATER_LAG, HEATER_BAND = 30.0, 0.01
 HEATER_GUESS = {"capacity": 600.0, "conductance": 2.0, "ambient": 290.0}
 HEATER_X0 = HEATER_THETA["ambient"] + HEATER_MEAN / HEATER_THETA["conductance"]
+DRIVE_DELAY, HEATER_DELAY = 0.12, 9.0
 
 
 def lagged_command(u, time_constant: float, sampling_time: float, start=None) -> np.ndarray:
@@ -64,17 +73,19 @@ def lagged_command(u, time_constant: float, sampling_time: float, start=None) ->
 
 @dataclass(frozen=True)
 class _LaggedPlant:
-    r"""A first-order plant driven through a lag of its command: ``physics(values)`` the
-    declared model (started at ``x0``), ``gain`` the factor that turns the lag's error
-    :math:`\tilde u - u` into the state's rate, the command ``input_mean + input_std``
-    times a unit multisine of ``band`` cycles/sample, floored at ``input_floor``."""
+    r"""A first-order plant driven through a lag or a dead time of its command:
+    ``physics(values)`` the declared model (started at ``x0``), ``gain`` the factor that
+    turns the error :math:`\tilde u - u` into the state's rate, ``memory`` the lag's
+    ``{"time_constant": τ}`` or the dead time's ``{"delay": d}``, the command
+    ``input_mean + input_std`` times a unit multisine of ``band`` cycles/sample, floored at
+    ``input_floor``."""
 
     physics: Callable
     theta: dict
     guess: dict
     x0: float
     gain: Callable
-    lag: float
+    memory: dict
     dt: float
     input_mean: float
     input_std: float
@@ -86,12 +97,19 @@ class _LaggedPlant:
     descr: str
 
 
+def _delivered(plant: _LaggedPlant, command: np.ndarray) -> np.ndarray:
+    """What ``plant``'s lag or dead time delivers of ``command`` over each held sample."""
+    if "delay" in plant.memory:
+        return delayed_command(command, plant.memory["delay"], plant.dt)
+    return lagged_command(command, plant.memory["time_constant"], plant.dt)
+
+
 def _lagged_record(plant: _LaggedPlant, rng, n: int, stds) -> tuple:
     """One record: the command, the state (driven by the lagged command), the measured
     state, and the realised noises and lagged commands."""
     command = plant.input_mean + plant.input_std * _multisine(rng, n, plant.band)
     u = np.maximum(command, plant.input_floor)[:, None]
-    seen = lagged_command(u[:, 0], plant.lag, plant.dt)
+    seen = _delivered(plant, u[:, 0])
     w = _gaussian(rng, (n - 1, 1), stds[1])
     x0 = np.array([plant.x0])
     x = _rollout(plant.physics(plant.theta), plant.theta, x0, seen[:, None], None, w)
@@ -115,7 +133,7 @@ def _lagged_dataset(plant: _LaggedPlant, n_samples, noise_std, random_state, pro
         contribution,
         est[1][:-1, 0],
         plant.description,
-        {"time_constant": plant.lag},
+        dict(plant.memory),
         {"seen": seen, "seen_val": seen_val},
         plant.kinds,
         physics.input_names,
@@ -146,7 +164,7 @@ _DRIVE = _LaggedPlant(
     guess=DRIVE_GUESS,
     x0=0.0,
     gain=lambda theta: theta["b"],
-    lag=DRIVE_LAG,
+    memory={"time_constant": DRIVE_LAG},
     dt=DRIVE_DT,
     input_mean=0.0,
     input_std=DRIVE_INPUT_STD,
@@ -167,7 +185,7 @@ _HEATER = _LaggedPlant(
     guess=HEATER_GUESS,
     x0=HEATER_X0,
     gain=lambda theta: 1.0 / theta["capacity"],
-    lag=HEATER_LAG,
+    memory={"time_constant": HEATER_LAG},
     dt=HEATER_DT,
     input_mean=HEATER_MEAN,
     input_std=HEATER_STD,
@@ -272,3 +290,105 @@ def make_lagged_heater(
         As :func:`make_lagged_drive`.
     """
     return _lagged_dataset(_HEATER, n_samples, noise_std, random_state, process_noise_std)
+
+
+_DELAYED_DRIVE = replace(
+    _DRIVE,
+    memory={"delay": DRIVE_DELAY},
+    description="The command reaches the amplifier 0.12 s late.",
+    descr="Motor omega' = -a omega + b u(t - d), the command u applied after a dead time "
+    "d=0.12 s (2.4 samples; a command sent over a network), a=2 1/s, b=4 rad/(V s^2), "
+    "Euler dt=0.05 s, speed measured; the physics has d = 0.\n",
+)
+
+
+_DELAYED_HEATER = replace(
+    _HEATER,
+    memory={"delay": HEATER_DELAY},
+    description="The heat reaches the block 9 s after the heater delivers it.",
+    descr="Heated block C T' = P(t - d) - G (T - T_a) [SI units: K, W, J/K, s], the heat "
+    "carried from the heater by a fluid that takes d=9 s (4.5 samples) to reach the block, "
+    "C=800 J/K, G=2.5 W/K, T_a=295 K, Euler dt=2 s, temperature measured; the physics has "
+    "d = 0.\n",
+)
+
+
+def make_delayed_drive(
+    n_samples: int = 2000,
+    noise_std: float = 1e-2,
+    random_state=None,
+    *,
+    process_noise_std: float = 0.0,
+) -> Bunch:
+    """First-order motor whose physics assumes the command acts at once; it acts 0.12 s late.
+
+    The motor of :func:`make_lagged_drive` (:math:`\\dot\\omega = -a\\omega + b\\tilde u`,
+    :math:`a` = 2 1/s, :math:`b` = 4 rad/(V s²), one explicit-Euler step of
+    :math:`\\Delta t` = 0.05 s per sample), driven by the command ``u`` (V) after a dead
+    time :math:`d` = 0.12 s (2.4 samples: a command sent over a network), the held command
+    delayed and averaged over each sample (:func:`delayed_command`,
+    :math:`\\tilde u_k = 0.6\\,u_{k-2} + 0.4\\,u_{k-3}`); the commands before the record
+    equal the first. The physics has :math:`\\tilde u = u`. ``hidden_effect`` gives the
+    realised contribution :math:`\\Delta t\\, b (\\tilde u_k - u_k)` (``"contribution"``),
+    the delayed commands (``"seen"``, ``"seen_val"``) and ``"rates"``
+    ``{"delay": d}``. Input: zero-mean multisine 0-0.6 Hz (0.03 cycles/sample), std
+    0.8 V, where the dead time shifts the phase by up to 26°. Suggested library:
+    polynomials of degree 2 on ``[omega, u]``.
+
+    Parameters
+    ----------
+    n_samples : int, default=2000
+        Length of each record.
+    noise_std : float, default=1e-2
+        Standard deviation (rad/s) of the Gaussian speed-sensor noise.
+    random_state : int, RandomState instance or None, default=None
+        Seed of the input and noise realisations.
+    process_noise_std : float, default=0.0
+        Standard deviation (rad/s) of a Gaussian disturbance added to the speed update.
+
+    Returns
+    -------
+    data : sklearn.utils.Bunch
+        As :func:`make_lagged_drive`.
+    """
+    return _lagged_dataset(_DELAYED_DRIVE, n_samples, noise_std, random_state, process_noise_std)
+
+
+def make_delayed_heater(
+    n_samples: int = 2000,
+    noise_std: float = 0.02,
+    random_state=None,
+    *,
+    process_noise_std: float = 0.0,
+) -> Bunch:
+    """Heated block whose physics assumes the heat arrives at once; it arrives 9 s late.
+
+    The block of :func:`make_heated_block` (:math:`C \\dot T = \\tilde p - G (T - T_a)`,
+    SI units, :math:`C` = 800 J/K, :math:`G` = 2.5 W/K, :math:`T_a` = 295 K, one
+    explicit-Euler step of :math:`\\Delta t` = 2 s per sample), heated by a fluid that
+    carries the heater's power ``P`` to the block in :math:`d` = 9 s (4.5 samples: a
+    transport delay), the held power delayed and averaged over each sample
+    (:func:`delayed_command`); the powers before the record equal the first. No power
+    limit. The block starts at its steady state for the mean power (313 K). The physics
+    has :math:`\\tilde p = P`. ``hidden_effect`` gives the realised contribution
+    :math:`\\Delta t (\\tilde p_k - P_k) / C`, the delayed powers (``"seen"``,
+    ``"seen_val"``) and ``"rates"`` ``{"delay": d}``. Input: 45 W plus a multisine of
+    std 25 W over 0-0.0025 Hz (0.01 cycles/sample), floored at 0.
+
+    Parameters
+    ----------
+    n_samples : int, default=2000
+        Length of each record.
+    noise_std : float, default=0.02
+        Standard deviation (K) of the Gaussian temperature-sensor noise.
+    random_state : int, RandomState instance or None, default=None
+        Seed of the input and noise realisations.
+    process_noise_std : float, default=0.0
+        Standard deviation (K) of a Gaussian disturbance added to the temperature update.
+
+    Returns
+    -------
+    data : sklearn.utils.Bunch
+        As :func:`make_lagged_drive`.
+    """
+    return _lagged_dataset(_DELAYED_HEATER, n_samples, noise_std, random_state, process_noise_std)

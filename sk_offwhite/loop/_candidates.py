@@ -18,7 +18,8 @@ only where they make physical sense for the variables' kinds
   (:class:`~sk_offwhite.Backlash`, an effect with a hidden state);
 * inputs the simulation residual correlates with
   (:func:`~sk_offwhite.diagnose.correlated_inputs`): a first-order lag of their actuator
-  (:class:`~sk_offwhite.InputLag`, a hidden state too);
+  (:class:`~sk_offwhite.InputLag`, a hidden state too) and a dead time
+  (:class:`~sk_offwhite.InputDelay`, the past commands as hidden states);
 * measured states: a sensor offset and a sensor calibration (offset, gain, curvature:
   :class:`~sk_offwhite.SensorCalibration`); measured ceilings: an output saturation;
   repeated one-sample jumps of a measured output at one level
@@ -42,6 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._delay import InputDelay
 from .._effects import (
     Backlash,
     Bias,
@@ -308,17 +310,23 @@ def _transmissions(hypothesis, u, input_names, kinds: Kinds) -> list[Candidate]:
 def _lags(hypothesis, u, input_names, dt: float, correlated) -> list[Candidate]:
     """A first-order lag of the actuator of each input in ``correlated`` that varies
     (:class:`~sk_offwhite.InputLag`), its time constant started at one sample (``dt``,
-    the effects' unit of time) and its output settled at the first command. Proposed
-    whatever variables the hypothesis names, as the play (an effect with memory is no
-    function of them), but only for an input the residual correlates with: a lag's
+    the effects' unit of time) and its output settled at the first command, and a dead
+    time of the input (:class:`~sk_offwhite.InputDelay`, started at one sample, up to
+    eight), the other variant of how a command reaches the plant. Proposed whatever
+    variables the hypothesis names, as the play (an effect with memory is no function of
+    them), but only for an input the residual correlates with: a lag's or a delay's
     effect is, to first order, a linear function of the input's history."""
     out = []
     for j, n in enumerate(input_names):
         if j not in correlated or not np.ptp(u[:, j]) > 0:
             continue
-        effect = InputLag(j, dt, sampling_time=dt, initial=float(u[0, j]), name=f"lag_{n}")
-        reason = f"{hypothesis.sentence} The actuator of {n} may lag its command."
-        out.append(Candidate(effect, reason))
+        first = float(u[0, j])
+        lag = InputLag(j, dt, sampling_time=dt, initial=first, name=f"lag_{n}")
+        delay = InputDelay(j, dt, sampling_time=dt, initial=first, name=f"delay_{n}")
+        out.append(
+            Candidate(lag, f"{hypothesis.sentence} The actuator of {n} may lag its command.")
+        )
+        out.append(Candidate(delay, f"{hypothesis.sentence} {n} may reach the plant late."))
     return out
 
 

@@ -1,0 +1,209 @@
+"""InputDelay, a dead time of an input with the past commands as hidden states: the law
+(the exact mean of the delayed held command), its units, the delayed-plant generators,
+where the loop proposes it (beside the lag), a direct fit, and the closed loop on a short
+record (the full-length runs are the ``delayed_*`` rows of
+``benchmarks/bench_loop_generators.py``).
+"""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from sk_offwhite import GreyBoxSparseRegressor, InputDelay, InputLag, augment, switched
+from sk_offwhite._hidden import hidden_start
+from sk_offwhite._kinds import Kinds
+from sk_offwhite.datasets import delayed_command, make_delayed_drive, make_delayed_heater
+from sk_offwhite.datasets._lag import DRIVE_DELAY, DRIVE_DT, DRIVE_THETA, HEATER_DELAY
+from sk_offwhite.datasets._synthetic import _first_order_physics, motor_rhs
+from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
+from sk_offwhite.loop._candidates import propose_effects
+from sk_offwhite.loop._hypotheses import Hypothesis
+
+
+@pytest.fixture(scope="module")
+def drive():
+    return make_delayed_drive(n_samples=600, random_state=1)
+
+
+def _run(effect, commands, delay, past=None):
+    """What the declared step sees, sample by sample, through ``effect``."""
+    seen = []
+    with jax.enable_x64(True):
+        theta = {f"{effect.name}_delay": jnp.asarray(delay)}
+        hidden = jnp.full(effect.n_taps, commands[0] if past is None else past)
+        for command in commands:
+            u, hidden = effect.advance(hidden, jnp.array([command]), theta)
+            seen.append(float(u[0]))
+    return np.array(seen)
+
+
+def _mean_of_delayed_staircase(commands, delay, ts, fine=2000):
+    """The mean over each sample of the held command delayed by ``delay``, by quadrature."""
+    t = (np.arange(len(commands) * fine) + 0.5) * ts / fine - delay
+    index = np.clip(np.floor(t / ts).astype(int), 0, None)
+    return commands[index].reshape(len(commands), fine).mean(axis=1)
+
+
+@pytest.mark.parametrize("delay", [0.0, 0.3, 1.0, 2.4, 3.99])
+def test_the_delay_is_the_mean_of_the_delayed_held_command(delay):
+    ts = 0.5
+    commands = np.random.default_rng(0).normal(size=12)
+    exact = _mean_of_delayed_staircase(commands, delay * ts, ts)
+    np.testing.assert_allclose(delayed_command(commands, delay * ts, ts), exact, atol=1e-3)
+    effect = InputDelay(0, ts, sampling_time=ts, max_delay=4 * ts)
+    np.testing.assert_allclose(_run(effect, commands, delay * ts), exact, atol=1e-3)
+    np.testing.assert_allclose(
+        _run(effect, commands, delay * ts), delayed_command(commands, delay * ts, ts), atol=1e-14
+    )
+
+
+def test_a_delay_of_whole_samples_moves_the_command_and_is_differentiable_there():
+    effect = InputDelay(0, 1.0, max_delay=3.0)
+    commands = np.array([1.0, 2.0, 4.0, 8.0, 16.0])
+    np.testing.assert_allclose(_run(effect, commands, 2.0, past=0.5), [0.5, 0.5, 1, 2, 4])
+
+    with jax.enable_x64(True):
+        slope = jax.grad(lambda d: _run_traced(effect, commands, d))(jnp.asarray(2.0))
+    assert float(slope) == pytest.approx(2.0 - 4.0)  # u_{k-3} - u_{k-2}: the one-sided slope
+
+
+def _run_traced(effect, commands, delay):
+    hidden = jnp.full(effect.n_taps, commands[0])
+    theta = {f"{effect.name}_delay": delay}
+    for command in commands:
+        u, hidden = effect.advance(hidden, jnp.array([command]), theta)
+    return u[0]
+
+
+def test_the_delay_does_not_depend_on_the_unit_of_time():
+    commands = np.random.default_rng(1).normal(size=20)
+    seconds = _run(InputDelay(0, 0.05, sampling_time=0.05), commands, 0.12)
+    milliseconds = _run(InputDelay(0, 50.0, sampling_time=50.0), commands, 120.0)
+    np.testing.assert_allclose(seconds, milliseconds, rtol=1e-13)
+
+
+def test_the_delay_adds_fixed_hidden_states_of_the_inputs_kind(drive):
+    effect = InputDelay(0, DRIVE_DT, sampling_time=DRIVE_DT, initial=0.3, name="delay_u")
+    model = augment(drive.physics, effect)
+    assert effect.n_taps == 8 and model.n_states == 9 and model.n_declared_states == 1
+    assert model.state_names[1:3] == ("delay_u_past_1", "delay_u_past_2")
+    assert set(model.state_kinds[1:]) == {"voltage"}
+    np.testing.assert_array_equal(model.x0_fixed, [False] + [True] * 8)
+    np.testing.assert_array_equal(model.x0[1:], 0.3)
+    assert model.parameters["delay_u_delay"].bounds == (0.0, pytest.approx(8 * DRIVE_DT))
+    assert InputDelay(0, 3.0).n_taps == 12  # four times a delay longer than two samples
+
+
+def test_every_record_starts_the_past_commands_at_its_first_command(drive):
+    model = augment(drive.physics, InputDelay(0, DRIVE_DT, sampling_time=DRIVE_DT, max_delay=0.1))
+    x0 = hidden_start(model.step, [0.2, 9.0, 9.0], np.array([-0.7]), {}, model.x0_fixed)
+    np.testing.assert_array_equal(x0, [0.2, -0.7, -0.7])
+    lag = augment(drive.physics, InputLag(0, 0.1))
+    kept = hidden_start(lag.step, [0.2, 9.0], np.array([-0.7]), {}, np.array([False, True]))
+    np.testing.assert_array_equal(kept, [0.2, 9.0])  # a fixed entry of a free hidden state
+
+
+def test_a_switched_off_delay_is_the_declared_model(drive):
+    model = augment(drive.physics, switched(InputDelay(0, 0.1, sampling_time=DRIVE_DT)))
+    theta = {"a": 2.0, "b": 4.0, "delay_delay": 0.1, "delay_on": 0.0}
+    with jax.enable_x64(True):
+        x = jnp.array([0.5, -0.7, 0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7])
+        step = model.step(x, jnp.array([1.2]), theta)
+        declared = drive.physics.step(x[:1], jnp.array([1.2]), theta)
+    assert float(step[0]) == pytest.approx(float(declared[0]))
+
+
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"delay": 0.0}, "delay"),
+        ({"delay": float("inf")}, "delay"),
+        ({"delay": 1.0, "sampling_time": 0.0}, "sampling_time"),
+        ({"delay": 2.0, "max_delay": 1.0}, "max_delay"),
+    ],
+)
+def test_arguments_are_validated(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        InputDelay(0, **kwargs)
+
+
+@pytest.mark.parametrize(
+    "make, delay, gain",
+    [
+        (make_delayed_drive, DRIVE_DELAY, lambda theta: theta["b"]),
+        (make_delayed_heater, HEATER_DELAY, lambda theta: 1.0 / theta["capacity"]),
+    ],
+)
+def test_the_generators_drive_the_plant_with_the_delayed_command(make, delay, gain):
+    data = make(n_samples=300, random_state=2, noise_std=0.0)
+    seen = data.hidden_effect["seen"]
+    ts = data.sampling_time
+    np.testing.assert_array_equal(seen, delayed_command(data.u[:, 0], delay, ts))
+    with jax.enable_x64(True):
+        theta = {k: jnp.asarray(v) for k, v in data.true_parameters.items()}
+        step = jax.vmap(data.physics.step, in_axes=(0, 0, None))
+        predicted = np.asarray(step(jnp.asarray(data.x[:-1]), jnp.asarray(seen[:-1, None]), theta))
+    np.testing.assert_allclose(predicted, data.x[1:], rtol=1e-12, atol=1e-12)
+    contribution = ts * gain(data.true_parameters) * (seen[:-1] - data.u[:-1, 0])
+    np.testing.assert_allclose(data.hidden_effect["contribution"], contribution)
+    assert data.hidden_effect["rates"] == {"delay": delay}
+    assert data.hidden_effect["variables"] == tuple(data.physics.input_names)
+
+
+def test_a_delay_is_proposed_beside_the_lag_for_each_correlated_input_that_varies():
+    hypothesis = Hypothesis("x", 0, ("x",), -1, None, sentence="x lacks a term.")
+    rng = np.random.default_rng(0)
+    states = rng.normal(size=(40, 1))
+    u = np.c_[rng.normal(size=40), np.full(40, 3.0)]
+    kinds = Kinds(("generic",), ("position", "force"), {})
+    found = propose_effects([hypothesis], [], ("x",), ["x"], states, u=u, input_names=("s", "f"),
+                            kinds=kinds, dt=0.02, correlated_inputs=(0, 1))  # fmt: skip
+    delays = [c.effect for c in found if isinstance(c.effect, InputDelay)]
+    lags = [c.effect for c in found if isinstance(c.effect, InputLag)]
+    assert [d.name for d in delays] == ["delay_s"] and [g.name for g in lags] == ["lag_s"]
+    assert delays[0].delay == delays[0].sampling_time == 0.02 and delays[0].initial == u[0, 0]
+    assert delays[0].mechanism == lags[0].mechanism  # variants: at most one in a set
+
+
+def test_fitting_the_delay_recovers_it_and_the_motor(drive):
+    model = augment(drive.physics, InputDelay(0, DRIVE_DT, sampling_time=DRIVE_DT, name="d"))
+    est = GreyBoxSparseRegressor(model, max_iter=100).fit(drive.u, drive.z)
+    assert est.converged_
+    assert est.parameters_["d_delay"] == pytest.approx(DRIVE_DELAY, rel=0.02)
+    for name, value in DRIVE_THETA.items():
+        assert est.parameters_[name] == pytest.approx(value, rel=0.01), name
+    window = drive.z_val[:50]
+    residual = np.ravel(est.predict(drive.u_val, z_init=window)) - drive.z_val[:, 0]
+    assert np.sqrt(np.mean(residual[50:] ** 2)) < 1.1 * drive.noise["output"]["std"]
+
+
+def test_the_delay_fitted_in_milliseconds_is_the_delay_fitted_in_seconds(drive):
+    def fitted(scale):  # units of time per second
+        rates = {"a": 1.5 / scale, "b": 3.0 / scale}
+        names, kinds = ("omega", "u"), ("rate", "voltage")
+        physics = _first_order_physics(motor_rhs, rates, (0.0,), DRIVE_DT * scale, names, kinds)
+        delay = InputDelay(0, DRIVE_DT * scale, sampling_time=DRIVE_DT * scale, name="d")
+        est = GreyBoxSparseRegressor(augment(physics, delay), max_iter=100).fit(drive.u, drive.z)
+        return est.parameters_
+
+    seconds, milliseconds = fitted(1.0), fitted(1e3)
+    assert milliseconds["d_delay"] == pytest.approx(1e3 * seconds["d_delay"], rel=1e-9)
+    for name in ("a", "b"):
+        assert milliseconds[name] == pytest.approx(1e-3 * seconds[name], rel=1e-9)
+
+
+def test_the_loop_names_the_dead_time_not_the_lag_and_recovers_the_motor():
+    data = make_delayed_drive(n_samples=400, random_state=0)
+    settings = LoopSettings(
+        n_folds=2, max_iter=100, fit_delta=False, max_candidates=6, max_effects=1
+    )
+    result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=settings)
+    assert [type(e) for e in result.effects] == [InputDelay] and result.failures == []
+    fitted = result.final.parameters_
+    assert fitted["delay_u_delay"] == pytest.approx(DRIVE_DELAY, rel=0.05)
+    for name, value in DRIVE_THETA.items():
+        assert fitted[name] == pytest.approx(value, rel=0.05), name
+    rows = score_models(result, {"validation": (data.u_val, data.z_val)})
+    rmse = {r["model"]: r["rmse"] for r in rows if r["protocol"] == "init_window"}
+    assert rmse["augmented physics"] < 0.1 * rmse["declared physics"], rmse
