@@ -53,14 +53,15 @@ class InputDelay(Effect):
 
     the mean over sample :math:`k` of the held command delayed by :math:`d` (exact under a
     zero-order hold; see :mod:`sk_offwhite._delay`). Parameter ``{name}_delay``
-    (:math:`0 < d \le D T_s`, in the effects' unit of time,
+    (:math:`0 \le d \le D T_s`, in the effects' unit of time,
     :func:`~sk_offwhite._effects.time_step`, like ``sampling_time`` :math:`T_s`); hidden
     states ``{name}_past_1`` … ``{name}_past_D``, the commands of the last
     :math:`D` = ``ceil(max_delay / sampling_time)`` samples: each record starts them at
     its first command, and they are not fitted (only the first :math:`m + 1` samples see
     them; the rest would be parameters without influence). ``initial`` is their value in
     the model's ``x0``. ``max_delay`` defaults to eight samples, or four times ``delay``
-    when that is longer.
+    when that is longer; the richer variant (:meth:`richer`), which the loop tries once
+    the delay is chosen, doubles it.
 
     Its derivative in :math:`d` is :math:`(u_{k-m-1} - u_{k-m})/T_s`, the one-sided
     derivative at a whole number of samples, so a fit started at a whole sample moves.
@@ -132,6 +133,12 @@ class InputDelay(Effect):
         index = whole.astype(jnp.int32)
         seen = (1.0 - fraction) * commands[index] + fraction * commands[index + 1]
         return u.at[self.input].set(seen), commands[:-1]
+
+    def richer(self) -> InputDelay:
+        """The same dead time with twice the reach (:math:`2D` past commands): a delay
+        the fit left at its bound may be longer. Its fit starts at this one's delay."""
+        reach = 2 * self.n_taps * self.sampling_time
+        return self.replace(max_delay=reach, name=f"{self.name}_longer")
 
     def describe(self, state_names, output_names, values=None) -> str:
         return "the input acts late: a dead time between command and plant (its length fitted)"

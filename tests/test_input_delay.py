@@ -114,6 +114,15 @@ def test_a_switched_off_delay_is_the_declared_model(drive):
     assert float(step[0]) == pytest.approx(float(declared[0]))
 
 
+def test_the_richer_delay_reaches_twice_as_far_from_the_fitted_delay():
+    effect = InputDelay(0, 0.05, sampling_time=0.05, name="delay_u")
+    richer = effect.richer()
+    assert richer.name == "delay_u_longer" and richer.n_taps == 2 * effect.n_taps == 16
+    assert richer.mechanism == effect.mechanism
+    assert richer.parameters()["delay_u_longer_delay"].bounds == (0.0, pytest.approx(0.8))
+    assert effect.richer_start({"delay_u_delay": 0.4}) == {"delay_u_longer_delay": 0.4}
+
+
 @pytest.mark.parametrize(
     "kwargs, match",
     [
@@ -149,6 +158,12 @@ def test_the_generators_drive_the_plant_with_the_delayed_command(make, delay, ga
     np.testing.assert_allclose(data.hidden_effect["contribution"], contribution)
     assert data.hidden_effect["rates"] == {"delay": delay}
     assert data.hidden_effect["variables"] == tuple(data.physics.input_names)
+    longer = make(n_samples=300, random_state=2, noise_std=0.0, delay=3 * delay)
+    np.testing.assert_array_equal(
+        longer.hidden_effect["seen"], delayed_command(longer.u[:, 0], 3 * delay, ts)
+    )
+    with pytest.raises(ValueError, match="delay"):
+        make(n_samples=10, delay=0.0)
 
 
 def test_a_delay_is_proposed_beside_the_lag_for_each_correlated_input_that_varies():
@@ -207,3 +222,11 @@ def test_the_loop_names_the_dead_time_not_the_lag_and_recovers_the_motor():
     rows = score_models(result, {"validation": (data.u_val, data.z_val)})
     rmse = {r["model"]: r["rmse"] for r in rows if r["protocol"] == "init_window"}
     assert rmse["augmented physics"] < 0.1 * rmse["declared physics"], rmse
+
+
+def test_multiple_shooting_fits_the_delay_with_the_windows_past_commands_free(drive):
+    model = augment(drive.physics, InputDelay(0, DRIVE_DT, sampling_time=DRIVE_DT, name="d"))
+    est = GreyBoxSparseRegressor(model, horizon=50, max_iter=100).fit(drive.u, drive.z)
+    assert est.converged_ and est.parameters_["d_delay"] == pytest.approx(DRIVE_DELAY, rel=0.05)
+    est.set_params(horizon=None, warm_start=True).fit(drive.u, drive.z)
+    assert est.parameters_["d_delay"] == pytest.approx(DRIVE_DELAY, rel=0.01)

@@ -292,25 +292,35 @@ def make_lagged_heater(
     return _lagged_dataset(_HEATER, n_samples, noise_std, random_state, process_noise_std)
 
 
-_DELAYED_DRIVE = replace(
-    _DRIVE,
-    memory={"delay": DRIVE_DELAY},
-    description="The command reaches the amplifier 0.12 s late.",
-    descr="Motor omega' = -a omega + b u(t - d), the command u applied after a dead time "
-    "d=0.12 s (2.4 samples; a command sent over a network), a=2 1/s, b=4 rad/(V s^2), "
-    "Euler dt=0.05 s, speed measured; the physics has d = 0.\n",
-)
+def _delayed_drive(delay: float) -> _LaggedPlant:
+    """The lagged drive's motor, its command applied ``delay`` seconds late instead."""
+    return replace(
+        _DRIVE,
+        memory={"delay": delay},
+        description=f"The command reaches the amplifier {delay:g} s late.",
+        descr=f"Motor omega' = -a omega + b u(t - d), the command u applied after a dead time "
+        f"d={delay:g} s ({delay / DRIVE_DT:g} samples; a command sent over a network), a=2 "
+        "1/s, b=4 rad/(V s^2), Euler dt=0.05 s, speed measured; the physics has d = 0.\n",
+    )
 
 
-_DELAYED_HEATER = replace(
-    _HEATER,
-    memory={"delay": HEATER_DELAY},
-    description="The heat reaches the block 9 s after the heater delivers it.",
-    descr="Heated block C T' = P(t - d) - G (T - T_a) [SI units: K, W, J/K, s], the heat "
-    "carried from the heater by a fluid that takes d=9 s (4.5 samples) to reach the block, "
-    "C=800 J/K, G=2.5 W/K, T_a=295 K, Euler dt=2 s, temperature measured; the physics has "
-    "d = 0.\n",
-)
+def _delayed_heater(delay: float) -> _LaggedPlant:
+    """The lagged heater's block, its heat arriving ``delay`` seconds late instead."""
+    return replace(
+        _HEATER,
+        memory={"delay": delay},
+        description=f"The heat reaches the block {delay:g} s after the heater delivers it.",
+        descr="Heated block C T' = P(t - d) - G (T - T_a) [SI units: K, W, J/K, s], the heat "
+        f"carried from the heater by a fluid that takes d={delay:g} s ({delay / HEATER_DT:g} "
+        "samples) to reach the block, C=800 J/K, G=2.5 W/K, T_a=295 K, Euler dt=2 s, "
+        "temperature measured; the physics has d = 0.\n",
+    )
+
+
+def _checked_delay(delay) -> float:
+    if not (np.isfinite(delay) and delay > 0):
+        raise ValueError(f"delay must be a positive number of seconds, got {delay!r}.")
+    return float(delay)
 
 
 def make_delayed_drive(
@@ -319,6 +329,7 @@ def make_delayed_drive(
     random_state=None,
     *,
     process_noise_std: float = 0.0,
+    delay: float = DRIVE_DELAY,
 ) -> Bunch:
     """First-order motor whose physics assumes the command acts at once; it acts 0.12 s late.
 
@@ -345,13 +356,16 @@ def make_delayed_drive(
         Seed of the input and noise realisations.
     process_noise_std : float, default=0.0
         Standard deviation (rad/s) of a Gaussian disturbance added to the speed update.
+    delay : float, default=0.12
+        The dead time in seconds.
 
     Returns
     -------
     data : sklearn.utils.Bunch
         As :func:`make_lagged_drive`.
     """
-    return _lagged_dataset(_DELAYED_DRIVE, n_samples, noise_std, random_state, process_noise_std)
+    plant = _delayed_drive(_checked_delay(delay))
+    return _lagged_dataset(plant, n_samples, noise_std, random_state, process_noise_std)
 
 
 def make_delayed_heater(
@@ -360,6 +374,7 @@ def make_delayed_heater(
     random_state=None,
     *,
     process_noise_std: float = 0.0,
+    delay: float = HEATER_DELAY,
 ) -> Bunch:
     """Heated block whose physics assumes the heat arrives at once; it arrives 9 s late.
 
@@ -385,10 +400,13 @@ def make_delayed_heater(
         Seed of the input and noise realisations.
     process_noise_std : float, default=0.0
         Standard deviation (K) of a Gaussian disturbance added to the temperature update.
+    delay : float, default=9.0
+        The dead time in seconds.
 
     Returns
     -------
     data : sklearn.utils.Bunch
         As :func:`make_lagged_drive`.
     """
-    return _lagged_dataset(_DELAYED_HEATER, n_samples, noise_std, random_state, process_noise_std)
+    plant = _delayed_heater(_checked_delay(delay))
+    return _lagged_dataset(plant, n_samples, noise_std, random_state, process_noise_std)
