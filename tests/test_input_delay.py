@@ -178,6 +178,7 @@ def test_a_delay_is_proposed_beside_the_lag_for_each_correlated_input_that_varie
     lags = [c.effect for c in found if isinstance(c.effect, InputLag)]
     assert [d.name for d in delays] == ["delay_s"] and [g.name for g in lags] == ["lag_s"]
     assert delays[0].delay == delays[0].sampling_time == 0.02 and delays[0].initial == u[0, 0]
+    assert delays[0].n_taps == 25  # the lags over which the residual's correlation was found
     assert delays[0].mechanism == lags[0].mechanism  # variants: at most one in a set
 
 
