@@ -115,8 +115,9 @@ def _stribeck(**kwargs):
 
 
 def _long_delayed_heater(**kwargs):
-    """The block whose heat arrives 24 s (12 samples) late, beyond the reach of the loop's
-    dead time (eight samples): the loop must refine it into the delay of twice the reach."""
+    """The block whose heat arrives 24 s (12 samples) late: beyond a reach of eight
+    samples, with which the loop's dead time stopped at its bound and the loop added a
+    lag, a dead zone and a saturation instead (``_candidates.DELAY_REACH``)."""
     return make_delayed_heater(delay=24.0, **kwargs)
 
 
@@ -155,12 +156,7 @@ SYSTEMS = {
     "lagged_heater": (make_lagged_heater, 1000, InputLag, ("lag_P_time_constant", "time_constant")),
     "delayed_drive": (make_delayed_drive, 800, InputDelay, ("delay_u_delay", "delay")),
     "delayed_heater": (make_delayed_heater, 1000, InputDelay, ("delay_P_delay", "delay")),
-    "delayed_heater_long": (
-        _long_delayed_heater,
-        1000,
-        InputDelay,
-        ("delay_P_longer_delay", "delay"),
-    ),
+    "delayed_heater_long": (_long_delayed_heater, 1000, InputDelay, ("delay_P_delay", "delay")),
     "leaky_tank": (make_leaky_tank, 600, Leak, None),
     "friction": (make_friction_oscillator, 500, Friction, None),
     "stribeck": (_stribeck, 500, Friction, ("friction_v_stribeck_stribeck", "stribeck")),
