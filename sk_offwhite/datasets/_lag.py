@@ -331,12 +331,13 @@ def make_delayed_drive(
     process_noise_std: float = 0.0,
     delay: float = DRIVE_DELAY,
 ) -> Bunch:
-    """First-order motor whose physics assumes the command acts at once; it acts 0.12 s late.
+    """First-order motor whose physics assumes the command acts at once; it acts late.
 
     The motor of :func:`make_lagged_drive` (:math:`\\dot\\omega = -a\\omega + b\\tilde u`,
     :math:`a` = 2 1/s, :math:`b` = 4 rad/(V s²), one explicit-Euler step of
     :math:`\\Delta t` = 0.05 s per sample), driven by the command ``u`` (V) after a dead
-    time :math:`d` = 0.12 s (2.4 samples: a command sent over a network), the held command
+    time :math:`d` (``delay``, 0.12 s by default, 2.4 samples: a command sent over a
+    network), the held command
     delayed and averaged over each sample (:func:`delayed_command`,
     :math:`\\tilde u_k = 0.6\\,u_{k-2} + 0.4\\,u_{k-3}`); the commands before the record
     equal the first. The physics has :math:`\\tilde u = u`. ``hidden_effect`` gives the
@@ -376,13 +377,13 @@ def make_delayed_heater(
     process_noise_std: float = 0.0,
     delay: float = HEATER_DELAY,
 ) -> Bunch:
-    """Heated block whose physics assumes the heat arrives at once; it arrives 9 s late.
+    """Heated block whose physics assumes the heat arrives at once; it arrives late.
 
     The block of :func:`make_heated_block` (:math:`C \\dot T = \\tilde p - G (T - T_a)`,
     SI units, :math:`C` = 800 J/K, :math:`G` = 2.5 W/K, :math:`T_a` = 295 K, one
     explicit-Euler step of :math:`\\Delta t` = 2 s per sample), heated by a fluid that
-    carries the heater's power ``P`` to the block in :math:`d` = 9 s (4.5 samples: a
-    transport delay), the held power delayed and averaged over each sample
+    carries the heater's power ``P`` to the block in :math:`d` (``delay``, 9 s by default,
+    4.5 samples: a transport delay), the held power delayed and averaged over each sample
     (:func:`delayed_command`); the powers before the record equal the first. No power
     limit. The block starts at its steady state for the mean power (313 K). The physics
     has :math:`\\tilde p = P`. ``hidden_effect`` gives the realised contribution
