@@ -24,7 +24,7 @@ import math
 import jax.numpy as jnp
 import numpy as np
 
-from ._effects import Effect, _widened_range
+from ._effects import Effect, _widened_range, checked_positive
 from ._physics import Parameter
 
 __all__ = ["InputDelay", "delayed_command"]
@@ -81,15 +81,13 @@ class InputDelay(Effect):
         initial: float = 0.0,
         name: str = "delay",
     ):
-        if not (np.isfinite(sampling_time) and sampling_time > 0):
-            raise ValueError(f"sampling_time must be positive, got {sampling_time!r}.")
-        if not (np.isfinite(delay) and delay > 0):
-            raise ValueError(f"delay must be positive, got {delay!r}.")
+        sampling_time = checked_positive(sampling_time, "sampling_time")
+        delay = checked_positive(delay, "delay")
         if max_delay is None:
             max_delay = max(self.DEFAULT_SAMPLES * sampling_time, 4.0 * delay)
         if not (np.isfinite(max_delay) and max_delay >= delay):
             raise ValueError(f"max_delay must be at least delay, got {max_delay!r}.")
-        self.input, self.delay, self.sampling_time = int(input), float(delay), float(sampling_time)
+        self.input, self.delay, self.sampling_time = int(input), delay, sampling_time
         self.max_delay, self.initial, self.name = float(max_delay), float(initial), name
 
     @property

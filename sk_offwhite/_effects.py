@@ -120,11 +120,17 @@ def _widened_range(u, index: int) -> tuple[float, float]:
     return (2 * low - high, 2 * high - low)
 
 
+def checked_positive(value, name: str) -> float:
+    """``value`` as a float, or a ``ValueError`` naming ``name`` unless it is positive and
+    finite."""
+    value = float(value)
+    if not (np.isfinite(value) and value > 0):
+        raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
+    return value
+
+
 def _checked_corner(corner) -> float:
-    corner = float(corner)
-    if not (np.isfinite(corner) and corner > 0):
-        raise ValueError(f"corner must be a positive finite number, got {corner!r}.")
-    return corner
+    return checked_positive(corner, "corner")
 
 
 class Effect:
@@ -1292,12 +1298,10 @@ class InputLag(Effect):
         initial: float = 0.0,
         name: str = "lag",
     ):
-        if not (np.isfinite(time_constant) and time_constant > 0):
-            raise ValueError(f"time_constant must be positive, got {time_constant!r}.")
-        if not (np.isfinite(sampling_time) and sampling_time > 0):
-            raise ValueError(f"sampling_time must be positive, got {sampling_time!r}.")
-        self.input, self.time_constant = int(input), float(time_constant)
-        self.sampling_time, self.initial, self.name = float(sampling_time), float(initial), name
+        self.input = int(input)
+        self.time_constant = checked_positive(time_constant, "time_constant")
+        self.sampling_time = checked_positive(sampling_time, "sampling_time")
+        self.initial, self.name = float(initial), name
 
     @property
     def hidden_states(self) -> tuple[str, ...]:

@@ -26,16 +26,21 @@ def drive():
     return make_delayed_drive(n_samples=600, random_state=1)
 
 
-def _run(effect, commands, delay, past=None):
-    """What the declared step sees, sample by sample, through ``effect``."""
+def _seen(effect, commands, delay, past=None):
+    """What the declared step sees, sample by sample, through ``effect`` (traceable)."""
+    theta = {f"{effect.name}_delay": jnp.asarray(delay)}
+    hidden = jnp.full(effect.n_taps, commands[0] if past is None else past)
     seen = []
+    for command in commands:
+        u, hidden = effect.advance(hidden, jnp.array([command]), theta)
+        seen.append(u[0])
+    return jnp.stack(seen)
+
+
+def _run(effect, commands, delay, past=None):
+    """:func:`_seen` in double precision, as NumPy."""
     with jax.enable_x64(True):
-        theta = {f"{effect.name}_delay": jnp.asarray(delay)}
-        hidden = jnp.full(effect.n_taps, commands[0] if past is None else past)
-        for command in commands:
-            u, hidden = effect.advance(hidden, jnp.array([command]), theta)
-            seen.append(float(u[0]))
-    return np.array(seen)
+        return np.asarray(_seen(effect, commands, delay, past))
 
 
 def _mean_of_delayed_staircase(commands, delay, ts, fine=2000):
@@ -64,16 +69,8 @@ def test_a_delay_of_whole_samples_moves_the_command_and_is_differentiable_there(
     np.testing.assert_allclose(_run(effect, commands, 2.0, past=0.5), [0.5, 0.5, 1, 2, 4])
 
     with jax.enable_x64(True):
-        slope = jax.grad(lambda d: _run_traced(effect, commands, d))(jnp.asarray(2.0))
+        slope = jax.grad(lambda d: _seen(effect, commands, d)[-1])(jnp.asarray(2.0))
     assert float(slope) == pytest.approx(2.0 - 4.0)  # u_{k-3} - u_{k-2}: the one-sided slope
-
-
-def _run_traced(effect, commands, delay):
-    hidden = jnp.full(effect.n_taps, commands[0])
-    theta = {f"{effect.name}_delay": delay}
-    for command in commands:
-        u, hidden = effect.advance(hidden, jnp.array([command]), theta)
-    return u[0]
 
 
 def test_the_delay_does_not_depend_on_the_unit_of_time():

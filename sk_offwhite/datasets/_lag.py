@@ -11,6 +11,7 @@ import numpy as np
 from sklearn.utils import Bunch, check_random_state
 
 from sk_offwhite._delay import delayed_command
+from sk_offwhite._effects import checked_positive
 from sk_offwhite.datasets._common import (
     _bunch,
     _check_n_samples,
@@ -317,12 +318,6 @@ def _delayed_heater(delay: float) -> _LaggedPlant:
     )
 
 
-def _checked_delay(delay) -> float:
-    if not (np.isfinite(delay) and delay > 0):
-        raise ValueError(f"delay must be a positive number of seconds, got {delay!r}.")
-    return float(delay)
-
-
 def make_delayed_drive(
     n_samples: int = 2000,
     noise_std: float = 1e-2,
@@ -365,7 +360,7 @@ def make_delayed_drive(
     data : sklearn.utils.Bunch
         As :func:`make_lagged_drive`.
     """
-    plant = _delayed_drive(_checked_delay(delay))
+    plant = _delayed_drive(checked_positive(delay, "delay"))
     return _lagged_dataset(plant, n_samples, noise_std, random_state, process_noise_std)
 
 
@@ -409,5 +404,5 @@ def make_delayed_heater(
     data : sklearn.utils.Bunch
         As :func:`make_lagged_drive`.
     """
-    plant = _delayed_heater(_checked_delay(delay))
+    plant = _delayed_heater(checked_positive(delay, "delay"))
     return _lagged_dataset(plant, n_samples, noise_std, random_state, process_noise_std)
