@@ -48,6 +48,7 @@ from sk_offwhite import (
     QuadraticDrag,
     RelaxedLaw,
     SensorCalibration,
+    SensorLag,
     SensorStep,
     Stiffness,
 )
@@ -70,6 +71,7 @@ from sk_offwhite.datasets import (
     make_nonlinear_sensor_tank,
     make_pendulum_drag,
     make_saturating_actuator,
+    make_slow_sensor_tank,
     make_stepped_sensor_tank,
 )
 from sk_offwhite.loop import (
@@ -169,6 +171,12 @@ SYSTEMS = {
         400,
         SensorStep,
         ("step_x_height", "step_height"),
+    ),
+    "slow_sensor": (
+        make_slow_sensor_tank,
+        400,
+        SensorLag,
+        ("sensor_lag_x_time_constant", "time_constant"),
     ),
     "heater": (make_heated_block, 1000, InputSaturation, ("actuator_limit_P_level", "limit")),
     "convection": (make_convective_block, 1000, PowerLoss, None),

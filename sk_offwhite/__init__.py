@@ -40,6 +40,7 @@ from ._estimator import (
 from ._path import GammaPath, fit_gamma_path, gamma_grid
 from ._physics import Parameter, PhysicsModel
 from ._radial import RadialBasis
+from ._sensor_lag import SensorLag
 from ._splitters import SequenceSplit, SequenceWarning
 
 __all__ = [
@@ -72,6 +73,7 @@ __all__ = [
     "RidgeBasis",
     "RunawayParameterWarning",
     "SensorCalibration",
+    "SensorLag",
     "SensorStep",
     "SequenceSplit",
     "SequenceWarning",

@@ -24,7 +24,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._hidden import with_hidden_states
+from ._hidden import SensorReading, sensor_readings, with_hidden_states
 from ._physics import DiscretizedStep, Parameter, PhysicsModel
 
 __all__ = [
@@ -149,6 +149,9 @@ class Effect:
     whatever the order the effects are given in (:class:`SensorStep`)."""
     hidden_states: tuple[str, ...] = ()
     """Names of the hidden states the effect carries (see :mod:`sk_offwhite._hidden`)."""
+    follows_output = False
+    """Whether the hidden states follow the declared output map rather than the input
+    (:meth:`follow` instead of :meth:`advance`; a slow sensor)."""
     hidden_free = True
     """Whether the hidden states' initial values are estimated with the initial state;
     ``False``: each record starts them where :meth:`hidden_start` puts them (the past
@@ -174,6 +177,17 @@ class Effect:
         """For an effect with hidden states: ``(input the declared step sees, next hidden
         states)`` from the hidden states and the input (identity by default)."""
         return u, hidden
+
+    def follow(self, hidden, now, after, theta):
+        """For an effect that :attr:`follows_output`: the next hidden states from these
+        and the declared outputs at samples :math:`k` (``now``) and :math:`k + 1`
+        (``after``)."""
+        return hidden
+
+    def follow_off(self, hidden, now, after):
+        """:meth:`follow` of the effect switched off (:class:`Switched`): hidden states
+        whose reading is the declared output (the hidden states themselves by default)."""
+        return hidden
 
     def hidden_initial(self) -> tuple[float, ...]:
         """Initial guesses of the hidden states (estimated with the initial state)."""
@@ -1472,6 +1486,19 @@ class Switched(Effect):
     def advance(self, hidden, u, theta):
         return _if_on(self.on(theta), lambda: self.effect.advance(hidden, u, theta), (u, hidden))
 
+    @property
+    def follows_output(self) -> bool:
+        return self.effect.follows_output
+
+    @property
+    def output(self) -> int:
+        """The output the effect acts on or reads (when it has one)."""
+        return self.effect.output
+
+    def follow(self, hidden, now, after, theta):
+        off = self.effect.follow_off(hidden, now, after)
+        return _if_on(self.on(theta), lambda: self.effect.follow(hidden, now, after, theta), off)
+
     def describe(self, state_names, output_names, values=None) -> str:
         return self.effect.describe(state_names, output_names, values)
 
@@ -1664,4 +1691,8 @@ def augment(physics: PhysicsModel, *effects: Effect) -> PhysicsModel:
     hidden = tuple(e for e in everything if e.hidden_states)
     if hidden:
         with_hidden_states(model, physics, hidden, tuple(e for e in effects if e.hidden_states))
+    readings = sensor_readings(model.step)
+    if readings:
+        base = SensorReading(declared[1], model.n_declared_states, readings)
+        model.output = AugmentedOutput(base, outputs) if outputs else base
     return model

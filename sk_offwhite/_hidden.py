@@ -11,7 +11,11 @@ hidden states :math:`h` of its own, appended after the declared states,
     \qquad (\tilde u_k, h_{k+1}) = a(h_k, u_k; \theta_E),
 
 where :math:`a` is the effect's ``advance``: it turns the input the plant receives into the
-one the declared step sees and updates its memory. The declared step, output map and
+one the declared step sees and updates its memory. An effect that ``follows_output`` (a
+slow sensor, :class:`~sk_offwhite.SensorLag`) updates its memory from the declared output
+map instead, :math:`h_{k+1} = a(h_k, y_k, y_{k+1}; \theta_E)` with
+:math:`y_k = h(x_k, u_k; \theta)` and :math:`y_{k+1} = h(x_{k+1}, u_k; \theta)`, and the
+output reads it. The declared step, output map and
 constraints see only :math:`x`; the hidden states' initial values are estimated with the
 declared ones (they are ordinary, free entries of :math:`x_0`), unless the effect fixes
 them (``Effect.hidden_free = False``: each record starts them where the effect's
@@ -28,18 +32,22 @@ from ._physics import measured_states
 __all__ = [
     "DeclaredStates",
     "HiddenStateStep",
+    "SensorReading",
     "hidden_bounds",
     "hidden_start",
+    "sensor_readings",
     "with_hidden_states",
 ]
 
 
 class HiddenStateStep:
     """Step of a model with hidden states: each effect's ``advance`` on its slice of the
-    hidden states and on the input, then the ``inner`` step on the declared states."""
+    hidden states and on the input, then the ``inner`` step on the declared states, then
+    the effects that follow the declared ``output`` map (``None`` when none does)."""
 
-    def __init__(self, inner, effects: tuple, n_declared: int):
+    def __init__(self, inner, effects: tuple, n_declared: int, output=None):
         self.inner, self.effects, self.n_declared = inner, effects, int(n_declared)
+        self.output = output
         self.__name__ = getattr(inner, "__name__", "step")
 
     def slices(self):
@@ -51,16 +59,31 @@ class HiddenStateStep:
             start = stop
 
     def __call__(self, x, u, theta):
-        hidden_next = []
+        hidden_next, measured = {}, u
         for effect, part in self.slices():
-            u, h = effect.advance(x[part], u, theta)
-            hidden_next.append(jnp.reshape(h, (part.stop - part.start,)).astype(x.dtype))
+            if not effect.follows_output:
+                u, hidden_next[part.start] = effect.advance(x[part], u, theta)
         declared = self.inner(x[: self.n_declared], u, theta)
         declared = jnp.asarray(declared, dtype=x.dtype).reshape(self.n_declared)
-        return jnp.concatenate([declared, *hidden_next])
+        hidden_next.update(self._followed(x, declared, measured, theta))
+        parts = [
+            jnp.reshape(hidden_next[part.start], (part.stop - part.start,)).astype(x.dtype)
+            for _, part in self.slices()
+        ]
+        return jnp.concatenate([declared, *parts])
+
+    def _followed(self, x, declared_next, u, theta) -> dict:
+        """Next hidden states of the effects that follow the declared output, by the
+        index of their first state."""
+        following = [(e, p) for e, p in self.slices() if e.follows_output]
+        if not following:
+            return {}
+        now = jnp.atleast_1d(self.output(x[: self.n_declared], u, theta))
+        after = jnp.atleast_1d(self.output(declared_next, u, theta))
+        return {part.start: effect.follow(x[part], now, after, theta) for effect, part in following}
 
     def _key(self):
-        return (HiddenStateStep, self.inner, self.effects, self.n_declared)
+        return (HiddenStateStep, self.inner, self.effects, self.n_declared, self.output)
 
     def __eq__(self, other) -> bool:
         return isinstance(other, HiddenStateStep) and self._key() == other._key()
@@ -84,6 +107,16 @@ def hidden_start(step, x0, u_first, theta: dict, fixed=None) -> np.ndarray:
         moved = np.asarray(effect.hidden_start(x0[part], u_first, theta), float)
         x0[part] = np.where(keep[part] & effect.hidden_free, x0[part], moved)
     return x0
+
+
+def sensor_readings(step) -> tuple[tuple[int, int], ...]:
+    """``(output, state)`` for each hidden state that an output reads (an effect that
+    follows the output, :class:`~sk_offwhite.SensorLag`); empty for other models."""
+    if not isinstance(step, HiddenStateStep):
+        return ()
+    return tuple(
+        (effect.output, part.start) for effect, part in step.slices() if effect.follows_output
+    )
 
 
 def hidden_bounds(step, u, n_states: int) -> tuple[np.ndarray, np.ndarray]:
@@ -119,6 +152,35 @@ class DeclaredStates:
         return hash((DeclaredStates, self.function, self.n_declared))
 
 
+class SensorReading:
+    """Output map of a model whose sensors lag: the declared map on the declared states,
+    output ``j`` replaced by hidden state ``i`` for each ``(j, i)`` in ``lagged``.
+    ``indices`` are the declared map's measured states, when it reads states (the first
+    guess of a record's initial state), and ``readings`` the ``(output, state)`` pairs."""
+
+    def __init__(self, function, n_declared: int, lagged: tuple):
+        self.function, self.n_declared = function, int(n_declared)
+        self.readings = tuple((int(j), int(i)) for j, i in lagged)
+        declared = getattr(function, "indices", None)
+        if declared is not None:
+            self.indices = declared
+
+    def __call__(self, x, u, theta):
+        z = jnp.atleast_1d(self.function(x[: self.n_declared], u, theta))
+        for output, state in self.readings:
+            z = z.at[output].set(x[state])
+        return z
+
+    def _key(self):
+        return (SensorReading, self.function, self.n_declared, self.readings)
+
+    def __eq__(self, other) -> bool:
+        return isinstance(other, SensorReading) and self._key() == other._key()
+
+    def __hash__(self) -> int:
+        return hash(self._key())
+
+
 def _declared_only(function, n_declared: int):
     """``function`` restricted to the declared states (``None`` and wrapped maps kept)."""
     if function is None or isinstance(function, DeclaredStates):
@@ -146,7 +208,9 @@ def with_hidden_states(model, physics, hidden: tuple, new: tuple) -> None:
     low, high = physics.x0_bounds
     model.n_declared_states = n_declared
     model.n_states = physics.n_states + len(added)
-    model.step = HiddenStateStep(model.step, hidden, n_declared)
+    follows = any(effect.follows_output for effect in hidden)
+    declared_output = getattr(model, "declared", (None, physics.output))[1] if follows else None
+    model.step = HiddenStateStep(model.step, hidden, n_declared, declared_output)
     if callable(model.output) and measured_states(model.output) is None:
         model.output = _declared_only(model.output, n_declared)
     model.inequality = _declared_only(physics.inequality, n_declared)

@@ -15,7 +15,7 @@ import numpy as np
 
 from ._backend import to_device
 from ._effects import Switched
-from ._hidden import hidden_bounds, hidden_start
+from ._hidden import hidden_bounds, hidden_start, sensor_readings
 from ._layout import Layout
 from ._lm_device import PAD_TO, levenberg_marquardt_on_device
 from ._objective import CostWeights
@@ -98,7 +98,8 @@ def _window_initial_states(model, blocks, records, segments, horizon):
 def initial_state_guess(base, model, u_first, z_first, theta: dict, fixed=None) -> np.ndarray:
     """``base`` with its non-fixed states set from a record's first sample: the directly
     measured ones to the first measurement ``z_first`` (when ``model.output`` is
-    :class:`~sk_offwhite._physics.MeasuredStates`), the hidden ones where the first input
+    :class:`~sk_offwhite._physics.MeasuredStates`) and the readings of slow sensors
+    (:class:`~sk_offwhite.SensorLag`) to it too, the hidden ones where the first input
     ``u_first`` starts them (:func:`~sk_offwhite._hidden.hidden_start`, ``theta`` the
     parameters by name). ``model`` is a physics or a compiled model (its ``step`` and
     ``output``)."""
@@ -108,6 +109,9 @@ def initial_state_guess(base, model, u_first, z_first, theta: dict, fixed=None) 
         measured = np.asarray(indices)
         free = np.ones(measured.shape, bool) if fixed is None else ~fixed[measured]
         guess[measured[free]] = np.asarray(z_first)[free]
+    for output, state in sensor_readings(model.step):
+        if fixed is None or not fixed[state]:
+            guess[state] = np.asarray(z_first)[output]
     return hidden_start(model.step, guess, u_first, theta, fixed)
 
 

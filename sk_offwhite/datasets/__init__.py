@@ -29,7 +29,9 @@ from sk_offwhite.datasets._mechanical import (
     make_pendulum_drag,
 )
 from sk_offwhite.datasets._sensor import (
+    lagged_reading,
     make_nonlinear_sensor_tank,
+    make_slow_sensor_tank,
     make_stepped_sensor_tank,
     sensor_reading,
     stepped_reading,
@@ -49,6 +51,7 @@ __all__ = [
     "cascaded_tanks_physics",
     "delayed_command",
     "lagged_command",
+    "lagged_reading",
     "load_cascaded_tanks",
     "make_backlash_servo",
     "make_cascaded_tanks",
@@ -68,6 +71,7 @@ __all__ = [
     "make_nonlinear_sensor_tank",
     "make_pendulum_drag",
     "make_saturating_actuator",
+    "make_slow_sensor_tank",
     "make_stepped_sensor_tank",
     "make_vehicle_lateral",
     "play",

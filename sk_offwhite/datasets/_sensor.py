@@ -1,5 +1,6 @@
 """Tanks whose level sensor is not what the physics says: the missing effect is in the
-output map (a curved characteristic, a step in the reading)."""
+output map (a curved characteristic, a step in the reading) or in the sensor's own
+dynamics (a reading that lags the level)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,9 @@ from functools import partial
 import numpy as np
 from sklearn.utils import Bunch, check_random_state
 
+from sk_offwhite._effects import checked_positive
 from sk_offwhite._physics import Parameter, PhysicsModel
+from sk_offwhite._sensor_lag import sensor_lag_law
 from sk_offwhite.datasets._common import (
     _bunch,
     _check_n_samples,
@@ -23,6 +26,7 @@ from sk_offwhite.datasets._synthetic import POSITIVE, tank_rhs
 SENSOR_THETA = {"k": 0.5, "b": 0.5}
 SENSOR_CURVATURE, SENSOR_DT, SENSOR_X0 = 0.04, 1.0, 4.0
 STEP_LEVEL, STEP_HEIGHT = 5.0, 0.4
+SENSOR_LAG = 4.0
 
 
 def sensor_reading(level, curvature: float = SENSOR_CURVATURE, cubic: float = 0.0):
@@ -33,6 +37,23 @@ def sensor_reading(level, curvature: float = SENSOR_CURVATURE, cubic: float = 0.
 def stepped_reading(level, step_level: float = STEP_LEVEL, step_height: float = STEP_HEIGHT):
     r"""What a sensor with a seam reads at ``level``: :math:`x + H\,[x > L]`."""
     return level + step_height * (np.asarray(level) > step_level)
+
+
+def lagged_reading(level, time_constant: float = SENSOR_LAG, sampling_time: float = SENSOR_DT):
+    r"""What a sensor with a first-order lag of time constant :math:`\tau` reads of the
+    sampled ``level`` (1-D, or one column), the level linear over each sample and the
+    sensor settled at the first level:
+    :math:`s_{k+1} = s_k + \alpha (x_k - s_k) + \beta (x_{k+1} - x_k)` with
+    :math:`\alpha = 1 - e^{-T_s/\tau}` and :math:`\beta = 1 - \alpha\tau/T_s`
+    (:class:`~sk_offwhite.SensorLag`'s law)."""
+    level = np.asarray(level, dtype=np.float64)
+    samples = level.reshape(len(level))
+    reading = np.empty_like(samples)
+    reading[0] = samples[0]
+    ratio = time_constant / sampling_time
+    for k in range(samples.size - 1):
+        reading[k + 1] = sensor_lag_law(reading[k], samples[k], samples[k + 1], ratio, np)
+    return reading.reshape(level.shape)
 
 
 def _sensor_tank_physics(k: float, x0: float) -> PhysicsModel:
@@ -178,6 +199,65 @@ def make_stepped_sensor_tank(
         (n_samples, noise_std, process_noise_std, random_state), stepped_reading, hidden,
         "reads z = x + 0.4 [x > 5]; the physics reads z = x.\n",
     )  # fmt: skip
+
+
+def make_slow_sensor_tank(
+    n_samples: int = 1000,
+    noise_std: float = 0.02,
+    random_state=None,
+    *,
+    process_noise_std: float = 0.0,
+    time_constant: float = SENSOR_LAG,
+) -> Bunch:
+    """Single tank read by a level sensor that lags the level (sensor dynamics).
+
+    True system, one explicit-Euler step of :math:`\\Delta t = 1` s per sample:
+
+    .. math::
+
+        \\dot x = -k \\sqrt{x} + b u, \\qquad \tau \\dot s = x - s, \\qquad z = s + \\eta,
+
+    with :math:`k = 0.5`, :math:`b = 0.5` (the pump gain, known: fixed in the declared
+    physics), :math:`x(0) = 4` and :math:`\tau` = ``time_constant`` (4 s by default,
+    four samples: a damped pressure transducer, a float in a stilling well), the level
+    taken linear over each sample (:func:`lagged_reading`) and the sensor settled at the
+    first level. The physics reads the level as it is (:math:`z = x`); the missing effect
+    has memory and sits in the measurement, not in the tank. The outlet's square root
+    tells it apart from a lag of the pump, which a linear tank would not (a lag commutes
+    with a linear plant). ``hidden_effect["rates"]`` is ``{"time_constant": τ}``. Input:
+    pump flow, multisine 0-0.02 cycles/sample, mean 2, std 0.6, clipped at 0 (levels
+    about 0-12). Suggested library: polynomials of degree 2 on ``[x, u]``.
+
+    Parameters
+    ----------
+    n_samples : int, default=1000
+        Length of each record.
+    noise_std : float, default=0.02
+        Standard deviation of the Gaussian sensor noise.
+    random_state : int, RandomState instance or None, default=None
+        Seed of the input and noise realisations.
+    process_noise_std : float, default=0.0
+        Standard deviation of a Gaussian disturbance added to the level update.
+    time_constant : float, default=4.0
+        The sensor's time constant :math:`\tau` in seconds.
+
+    Returns
+    -------
+    data : sklearn.utils.Bunch
+        As :func:`make_nonlinear_sensor_tank`.
+    """
+    time_constant = checked_positive(time_constant, "time_constant")
+    hidden = {
+        "description": f"The level sensor follows the level through a lag of {time_constant:g} s.",
+        "rates": {"time_constant": time_constant},
+    }
+    return _sensor_tank_data(
+        (n_samples, noise_std, process_noise_std, random_state),
+        partial(lagged_reading, time_constant=time_constant),
+        hidden,
+        f"follows the level through a first-order lag, tau={time_constant:g} s; the physics "
+        "reads z = x.\n",
+    )
 
 
 def _sensor_tank_data(sampling, reading, hidden: dict, read_as: str) -> Bunch:

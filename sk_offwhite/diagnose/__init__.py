@@ -6,7 +6,9 @@ the simulated states ``x_sim``, with the residual ``z - z_sim``:
 - :func:`simulation_metrics`: RMSE, NRMSE, fit %, R² and largest error per output;
 - :func:`whiteness_test`: is the residual white (autocorrelation, Ljung-Box)?
 - :func:`cross_correlation_test`: is it independent of past inputs?
-  (:func:`correlated_inputs`: the inputs it is not independent of);
+  (:func:`correlated_inputs`: the inputs it is not independent of;
+  :func:`lagging_outputs`: the outputs whose residual runs against their simulated rate,
+  a slow sensor?);
 - :func:`residual_regions`: in which range of a state or input does it concentrate, with
   which sign?
 - :func:`range_violations`: measured ceilings/floors (saturations?) the model crosses;
@@ -23,6 +25,7 @@ from ._correlation import (
     WhitenessResult,
     correlated_inputs,
     cross_correlation_test,
+    lagging_outputs,
     whiteness_test,
 )
 from ._jumps import OutputJump, output_jumps
@@ -41,6 +44,7 @@ __all__ = [
     "analyse_residuals",
     "correlated_inputs",
     "cross_correlation_test",
+    "lagging_outputs",
     "output_jumps",
     "range_violations",
     "residual_regions",

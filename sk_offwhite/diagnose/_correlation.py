@@ -43,6 +43,7 @@ __all__ = [
     "WhitenessResult",
     "correlated_inputs",
     "cross_correlation_test",
+    "lagging_outputs",
     "whiteness_test",
 ]
 
@@ -229,6 +230,47 @@ def correlated_inputs(residual, u, max_lag: int = 25, confidence: float = 0.99) 
         result = cross_correlation_test(column, u, max_lag, confidence)
         named |= {int(j) for j in np.flatnonzero(result.p_value < 1.0 - confidence)}
     return tuple(sorted(named))
+
+
+def lagging_outputs(
+    residual, outputs, confidence: float = 0.99, max_lag: int = 25
+) -> tuple[int, ...]:
+    r"""Indices of the outputs whose measurement lags the model: the residual runs against
+    the simulated output's rate.
+
+    A reading :math:`s` that follows the output :math:`y` through a lag of time constant
+    :math:`\tau` differs from it by :math:`s - y \approx -\tau \dot y`, so the residual
+    :math:`\varepsilon = z - \hat y` and the rate :math:`\dot{\hat y}` (central
+    differences) are negatively correlated at lag 0. An output is named when that
+    correlation :math:`r_0` lies below :math:`-z_c \sqrt{P/N}`, one-sided at
+    ``confidence`` :math:`c`, with the Bartlett factor :math:`P` of
+    :func:`cross_correlation_test` over ``max_lag`` lags (both signals are coloured). A
+    column that is not finite or is constant names none.
+
+    Parameters
+    ----------
+    residual, outputs : array of shape (n_samples, n_outputs) or (n_samples,)
+        Measured minus simulated output, and the simulated output.
+    confidence : float, default 0.99
+    max_lag : int, default 25
+        Lags of the autocorrelations in the Bartlett factor.
+    """
+    residuals = np.asarray(residual, float).reshape(len(residual), -1)
+    simulated = np.asarray(outputs, float).reshape(len(outputs), -1)
+    check_rows("outputs", simulated, len(residuals), "residual")
+    confidence = check_confidence(confidence)
+    named = []
+    for j, (column, output) in enumerate(zip(residuals.T, simulated.T, strict=True)):
+        rate = np.gradient(output) if output.size > 1 else output
+        usable = np.all(np.isfinite(column)) and np.all(np.isfinite(rate))
+        if not (usable and np.ptp(column) > 0 and not is_constant(rate)):
+            continue
+        lags = _checked_lag(max_lag, column.size)
+        r0 = float(_cross_correlation(column, rate, 0)[0])
+        standard_error = np.sqrt(_bartlett_factor(column, rate, lags) / column.size)
+        if r0 < -norm.ppf(confidence) * standard_error:
+            named.append(j)
+    return tuple(named)
 
 
 def _checked_signal(residual) -> np.ndarray:

@@ -20,6 +20,9 @@ only where they make physical sense for the variables' kinds
   (:func:`~sk_offwhite.diagnose.correlated_inputs`): a first-order lag of their actuator
   (:class:`~sk_offwhite.InputLag`, a hidden state too) and a dead time
   (:class:`~sk_offwhite.InputDelay`, the past commands as hidden states);
+* outputs whose residual runs against the simulated rate
+  (:func:`~sk_offwhite.diagnose.lagging_outputs`): a slow sensor
+  (:class:`~sk_offwhite.SensorLag`, its reading a hidden state);
 * measured states: a sensor offset and a sensor calibration (offset, gain, curvature:
   :class:`~sk_offwhite.SensorCalibration`); measured ceilings: an output saturation;
   repeated one-sample jumps of a measured output at one level
@@ -65,6 +68,7 @@ from .._effects import (
     Stiffness,
 )
 from .._kinds import ACTUATOR_KINDS, LEVEL_KINDS, POSITION_KINDS, VELOCITY_KINDS, Kinds
+from .._sensor_lag import SensorLag
 from ._hypotheses import Hypothesis
 
 __all__ = ["Candidate", "promoted_terms", "propose_effects", "unique_by_name"]
@@ -339,6 +343,23 @@ def _lags(hypothesis, u, input_names, dt: float, correlated) -> list[Candidate]:
     return out
 
 
+def _sensor_lags(lagging, output_names, outputs, dt: float) -> list[Candidate]:
+    """A first-order lag of the sensor of each output in ``lagging``
+    (:class:`~sk_offwhite.SensorLag`), its time constant started at one sample (``dt``)
+    and its reading at the simulated output's first value."""
+    out = []
+    for o in lagging:
+        name = output_names[o]
+        first = 0.0 if outputs is None else float(outputs[0, o])
+        effect = SensorLag(o, dt, sampling_time=dt, initial=first, name=f"sensor_lag_{name}")
+        reason = (
+            f"The residual of {name} runs against its simulated rate: the sensor of {name} "
+            "may lag what it measures."
+        )
+        out.append(Candidate(effect, reason))
+    return out
+
+
 def _slug(text: str) -> str:
     return re.sub(r"[^0-9A-Za-z]+", "_", text).strip("_") or "term"
 
@@ -497,6 +518,7 @@ def propose_effects(
     outputs=None,
     jumps=(),
     correlated_inputs=(),
+    lagging_outputs=(),
 ) -> list[Candidate]:
     """Candidate effects (list of :class:`Candidate`), one per effect name, by evidence.
 
@@ -530,6 +552,9 @@ def propose_effects(
     correlated_inputs : sequence of int, default=()
         From :func:`~sk_offwhite.diagnose.correlated_inputs` on the baseline's
         simulation residual: a lag of each of these inputs' actuators.
+    lagging_outputs : sequence of int, default=()
+        From :func:`~sk_offwhite.diagnose.lagging_outputs`: a lag of each of these
+        outputs' sensors.
     """
     names, output_names = tuple(state_names), list(output_names)
     states = np.asarray(states, float)
@@ -556,6 +581,7 @@ def propose_effects(
     outputs = None if outputs is None else np.asarray(outputs, float)
     proposals += _ceilings(range_facts, output_names, measured, names, states, outputs)
     proposals += _steps(jumps, output_names, outputs)
+    proposals += _sensor_lags(lagging_outputs, output_names, outputs, dt)
     proposals += _spills(states, names, kinds)
     if u_arr is not None:
         proposals += _drives(u_arr, states, tuple(input_names), names, kinds)

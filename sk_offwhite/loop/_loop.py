@@ -73,6 +73,7 @@ from ..diagnose import (
     RangeViolation,
     analyse_residuals,
     correlated_inputs,
+    lagging_outputs,
     output_jumps,
     range_violations,
 )
@@ -1041,6 +1042,7 @@ def _candidates(physics, library, hypotheses, facts, run, u, z, settings):
         outputs=run.outputs,
         jumps=[fact for fact in facts if isinstance(fact, OutputJump)],
         correlated_inputs=correlated_inputs(z - run.outputs, u),
+        lagging_outputs=lagging_outputs(z - run.outputs, run.outputs),
     )
     declared = [
         Candidate(law, f"{law.parameter} is declared relaxable (fixed at {law.value:g})")
