@@ -5,6 +5,8 @@ record (the full-length runs are the ``delayed_*`` rows of
 ``benchmarks/bench_loop_generators.py``).
 """
 
+from types import SimpleNamespace
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -19,6 +21,7 @@ from sk_offwhite.datasets._synthetic import _first_order_physics, motor_rhs
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 from sk_offwhite.loop._candidates import propose_effects
 from sk_offwhite.loop._hypotheses import Hypothesis
+from sk_offwhite.loop._loop import _candidates
 
 
 @pytest.fixture(scope="module")
@@ -228,3 +231,14 @@ def test_multiple_shooting_fits_the_delay_with_the_windows_past_commands_free(dr
     assert est.converged_ and est.parameters_["d_delay"] == pytest.approx(DRIVE_DELAY, rel=0.05)
     est.set_params(horizon=None, warm_start=True).fit(drive.u, drive.z)
     assert est.parameters_["d_delay"] == pytest.approx(DRIVE_DELAY, rel=0.01)
+
+
+def test_the_loop_proposes_no_effect_on_the_past_commands_of_a_delay():
+    data = make_delayed_heater(n_samples=200, random_state=0)
+    delay = InputDelay(0, 2.0, sampling_time=2.0, max_delay=50.0, name="delay_P")
+    physics = augment(data.physics, delay)
+    run = SimpleNamespace(states=np.c_[data.x, np.repeat(data.u, 25, axis=1)], outputs=data.z)
+    found = _candidates(physics, None, [], [], run, data.u, data.z, LoopSettings())
+    targets = [getattr(c.effect, "state", 0) for c in found]
+    assert found and max(targets) == 0  # 25 one-signed generic past commands: no levels
+    assert not any(isinstance(c.effect, InputDelay | InputLag) for c in found)

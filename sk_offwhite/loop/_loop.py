@@ -60,7 +60,7 @@ from .._cache import release_package_programs
 from .._effects import DictionaryTerm, augment, relaxations, time_step
 from .._equations import output_name
 from .._estimator import GreyBoxSparseRegressor, RunawayParameterWarning
-from .._kinds import physical_kinds
+from .._kinds import Kinds, physical_kinds
 from .._optim import LM_SCALINGS
 from .._parallel import gather, launch, start_workers
 from .._path import GammaPath, fit_gamma_path
@@ -1028,16 +1028,17 @@ def _candidates(physics, library, hypotheses, facts, run, u, z, settings):
     mechanism the physics already models (:func:`_not_modelled`)."""
     dt = time_step(physics)
     names = list(physics.state_names) + list(physics.input_names)
+    n_declared, kinds = _declared_kinds(physics)
     found = propose_effects(
-        hypotheses,
+        [h for h in hypotheses if h.equation_index < n_declared],
         [fact for fact in facts if isinstance(fact, RangeViolation)],
-        physics.state_names,
+        physics.state_names[:n_declared],
         _output_names(physics, run.outputs.shape[1]),
-        run.states,
+        run.states[:, :n_declared],
         measured_states(physics.output),
         u=u,
         input_names=physics.input_names,
-        kinds=physical_kinds(physics),
+        kinds=kinds,
         dt=dt,
         outputs=run.outputs,
         jumps=[fact for fact in facts if isinstance(fact, OutputJump)],
@@ -1050,6 +1051,18 @@ def _candidates(physics, library, hypotheses, facts, run, u, z, settings):
     ]
     promoted = _promoted(physics, hypotheses, library, names, dt, settings)
     return _not_modelled(physics, unique_by_name(found + promoted + declared))
+
+
+def _declared_kinds(physics) -> tuple[int, Kinds]:
+    """The number of declared states and their kinds (:func:`physical_kinds`), the hidden
+    states' left out: effects act on declared states only. An effect's hidden states are
+    no levels or velocities of the plant; on a physics with a dead time, whose 25 past
+    commands of a one-signed generic input read as levels, the overflows between them
+    alone made 600 candidates that act on nothing."""
+    n_declared = getattr(physics, "n_declared_states", physics.n_states)
+    kinds = physical_kinds(physics)
+    partner = {v: p for v, p in kinds.partner.items() if max(v, p) < n_declared}
+    return n_declared, kinds._replace(states=kinds.states[:n_declared], partner=partner)
 
 
 def _promoted(physics, hypotheses, library, names, dt: float, settings) -> list:
