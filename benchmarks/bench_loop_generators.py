@@ -8,8 +8,9 @@ largest relative error of the declared parameters, the validation RMSE of the de
 augmented physics (``init_window`` protocol, 50 samples), the model the loop chose by CV,
 the failures, the wall time, and the Ljung-Box p-value of the declared and augmented
 physics' simulation residuals on the estimation record (25 lags: a p-value below 0.01
-says the residual is not white, something is left to explain). Everything is chosen on
-the estimation record; the validation record is only scored.
+says the residual is not white, something is left to explain), then the loop's notes on
+candidates that fit as well as a chosen effect (the data may not tell them apart).
+Everything is chosen on the estimation record; the validation record is only scored.
 
 With ``--again`` the loop then runs a second time on the physics it returned (the
 augmented physics, started at its fitted values) and prints what it adds there, the CV
@@ -263,6 +264,9 @@ def _print_run(name, data, result, kind, parameter, seconds) -> None:
         f"Ljung-Box p declared {_whiteness(result.baseline, data)}, augmented "
         f"{_whiteness(result.final, data)}"
     )
+    for note in result.notes:
+        if "tell them apart" in note:
+            print(f"  {note}")
 
 
 def again(name: str, data, result, settings) -> None:
