@@ -59,13 +59,13 @@ class HiddenStateStep:
             start = stop
 
     def __call__(self, x, u, theta):
-        hidden_next, measured = {}, u
+        hidden_next, command = {}, u
         for effect, part in self.slices():
             if not effect.follows_output:
                 u, hidden_next[part.start] = effect.advance(x[part], u, theta)
         declared = self.inner(x[: self.n_declared], u, theta)
         declared = jnp.asarray(declared, dtype=x.dtype).reshape(self.n_declared)
-        hidden_next.update(self._followed(x, declared, measured, theta))
+        hidden_next.update(self._followed(x, declared, command, theta))
         parts = [
             jnp.reshape(hidden_next[part.start], (part.stop - part.start,)).astype(x.dtype)
             for _, part in self.slices()
@@ -154,7 +154,7 @@ class DeclaredStates:
 
 class SensorReading:
     """Output map of a model whose sensors lag: the declared map on the declared states,
-    output ``j`` replaced by hidden state ``i`` for each ``(j, i)`` in ``lagged``.
+    output ``j`` replaced by hidden state ``i`` for each pair ``(j, i)`` of ``lagged``.
     ``indices`` are the declared map's measured states, when it reads states (the first
     guess of a record's initial state), and ``readings`` the ``(output, state)`` pairs."""
 

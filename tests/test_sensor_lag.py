@@ -213,9 +213,8 @@ def test_the_sensor_lag_fitted_in_milliseconds_is_the_lag_fitted_in_seconds(tank
 
 def test_the_loop_names_the_slow_sensor_not_the_pump_and_recovers_the_tank():
     data = make_slow_sensor_tank(n_samples=400, random_state=0)
-    settings = LoopSettings(
-        n_folds=2, max_iter=100, fit_delta=False, max_candidates=6, max_effects=1
-    )
+    # every candidate: the pump's hypothesis alone proposes six mechanisms before it
+    settings = LoopSettings(n_folds=2, max_iter=100, fit_delta=False, max_effects=1)
     result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=settings)
     assert [type(e) for e in result.effects] == [SensorLag] and result.failures == []
     fitted = result.final.parameters_
