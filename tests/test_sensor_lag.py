@@ -224,3 +224,20 @@ def test_the_loop_names_the_slow_sensor_not_the_pump_and_recovers_the_tank():
     rmse = {r["model"]: r["rmse"] for r in rows if r["protocol"] == "init_window"}
     assert rmse["augmented physics"] < 0.1 * rmse["declared physics"], rmse
     assert InputLag not in [type(e) for e in result.effects]
+
+
+def _pressure(x, u, theta):
+    """A declared output map that is no reading of a state: twice the level, plus 1."""
+    return jnp.atleast_1d(2.0 * x[0] + 1.0)
+
+
+def test_a_sensor_lags_an_output_map_that_is_no_reading_of_a_state(tank):
+    physics = PhysicsModel.from_ode(
+        tank_rhs, 1.0, output=_pressure, parameters={"k": 0.5, "b": 0.5}, n_states=1,
+        n_inputs=1, method="euler", x0=(4.0,),
+    )  # fmt: skip
+    model = augment(physics, SensorLag(0, 3.0, initial=9.0, name="slow"))
+    theta = {"k": 0.5, "b": 0.5, "slow_time_constant": 3.0}
+    simulated = _lagged(model, model.x0, tank.u[:80], theta)[:, 0]
+    declared = _lagged(physics, physics.x0, tank.u[:80], theta)[:, 0]
+    np.testing.assert_allclose(simulated, lagged_reading(declared, 3.0), rtol=1e-12)
