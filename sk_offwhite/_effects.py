@@ -1379,7 +1379,7 @@ class DictionaryTerm(AdditiveEffect):
 
     @property
     def feature(self) -> str:
-        """Name of :math:`\varphi_j`."""
+        r"""Name of :math:`\varphi_j`."""
         return self._compiled().names[self.column]
 
     def _compiled(self):

@@ -265,12 +265,12 @@ def make_lagged_heater(
     The block of :func:`make_heated_block` (:math:`C \\dot T = p - G (T - T_a)`, SI units,
     :math:`C` = 800 J/K, :math:`G` = 2.5 W/K, :math:`T_a` = 295 K, one explicit-Euler step of
     :math:`\\Delta t` = 2 s per sample), heated by an element whose output :math:`p` is a
-    first-order lag of the commanded power ``P`` with time constant :math:`\tau` = 30 s
+    first-order lag of the commanded power ``P`` with time constant :math:`\\tau` = 30 s
     (its own heat capacity), integrated exactly over each held sample
     (:func:`lagged_command`); no power limit. The block starts at its steady state for the
     mean power (313 K) and the element settled at the first command. The physics has
     :math:`p = P`. ``hidden_effect`` gives the realised contribution
-    :math:`\\Delta t (\tilde p_k - P_k) / C` and the lagged powers (``"seen"``,
+    :math:`\\Delta t (\\tilde p_k - P_k) / C` and the lagged powers (``"seen"``,
     ``"seen_val"``); ``hidden_effect["rates"]`` is ``{"time_constant": τ}``. Input: 45 W
     plus a multisine of std 25 W over 0-0.0025 Hz (0.01 cycles/sample), floored at 0.
 

@@ -215,10 +215,10 @@ def make_slow_sensor_tank(
 
     .. math::
 
-        \\dot x = -k \\sqrt{x} + b u, \\qquad \tau \\dot s = x - s, \\qquad z = s + \\eta,
+        \\dot x = -k \\sqrt{x} + b u, \\qquad \\tau \\dot s = x - s, \\qquad z = s + \\eta,
 
     with :math:`k = 0.5`, :math:`b = 0.5` (the pump gain, known: fixed in the declared
-    physics), :math:`x(0) = 4` and :math:`\tau` = ``time_constant`` (4 s by default,
+    physics), :math:`x(0) = 4` and :math:`\\tau` = ``time_constant`` (4 s by default,
     four samples: a damped pressure transducer, a float in a stilling well), the level
     taken linear over each sample (:func:`lagged_reading`) and the sensor settled at the
     first level. The physics reads the level as it is (:math:`z = x`); the missing effect
@@ -239,7 +239,7 @@ def make_slow_sensor_tank(
     process_noise_std : float, default=0.0
         Standard deviation of a Gaussian disturbance added to the level update.
     time_constant : float, default=4.0
-        The sensor's time constant :math:`\tau` in seconds.
+        The sensor's time constant :math:`\\tau` in seconds.
 
     Returns
     -------

@@ -253,7 +253,8 @@ def lagging_outputs(
         Measured minus simulated output, and the simulated output.
     confidence : float, default 0.99
     max_lag : int, default 25
-        Lags of the autocorrelations in the Bartlett factor.
+        Lags of the autocorrelations in the Bartlett factor (at most the record's length
+        less one).
     """
     residuals = np.asarray(residual, float).reshape(len(residual), -1)
     simulated = np.asarray(outputs, float).reshape(len(outputs), -1)
@@ -261,11 +262,13 @@ def lagging_outputs(
     confidence = check_confidence(confidence)
     named = []
     for j, (column, output) in enumerate(zip(residuals.T, simulated.T, strict=True)):
-        rate = np.gradient(output) if output.size > 1 else output
+        if column.size < 3:
+            continue
+        rate = np.gradient(output)
         usable = np.all(np.isfinite(column)) and np.all(np.isfinite(rate))
         if not (usable and np.ptp(column) > 0 and not is_constant(rate)):
             continue
-        lags = _checked_lag(max_lag, column.size)
+        lags = _checked_lag(min(max_lag, column.size - 1), column.size)
         r0 = float(_cross_correlation(column, rate, 0)[0])
         standard_error = np.sqrt(_bartlett_factor(column, rate, lags) / column.size)
         if r0 < -norm.ppf(confidence) * standard_error:
