@@ -120,6 +120,16 @@ def _widened_range(u, index: int) -> tuple[float, float]:
     return (2 * low - high, 2 * high - low)
 
 
+def lag_coefficients(ratio, xp=jnp):
+    r""":math:`\alpha = 1 - e^{-T_s/\tau}` and :math:`\beta = 1 - \frac{\tau}{T_s}\,\alpha`
+    of a first-order lag of time constant :math:`\tau` over a sample :math:`T_s`, from
+    ``ratio`` :math:`= \tau / T_s`, in the array module ``xp``: the share of the gap to
+    its input that the lag closes over the sample, and the share its mean over the sample
+    closes (:class:`InputLag`, :class:`~sk_offwhite.SensorLag`)."""
+    alpha = -xp.expm1(-1.0 / ratio)
+    return alpha, 1.0 - ratio * alpha
+
+
 def checked_positive(value, name: str) -> float:
     """``value`` as a float, or a ``ValueError`` naming ``name`` unless it is positive and
     finite."""
@@ -1346,9 +1356,7 @@ class InputLag(Effect):
         return (_widened_range(u, self.input),)
 
     def advance(self, hidden, u, theta):
-        ratio = theta[f"{self.name}_time_constant"] / self.sampling_time
-        alpha = -jnp.expm1(-1.0 / ratio)
-        beta = 1.0 - ratio * alpha
+        alpha, beta = lag_coefficients(theta[f"{self.name}_time_constant"] / self.sampling_time)
         output, gap = hidden[0], u[self.input] - hidden[0]
         seen = output + beta * gap
         return u.at[self.input].set(seen), jnp.reshape(output + alpha * gap, (1,))

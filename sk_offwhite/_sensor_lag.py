@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from ._effects import Effect, _positive, checked_positive
+from ._effects import Effect, _positive, checked_positive, lag_coefficients
 from ._physics import Parameter
 
 __all__ = ["SensorLag", "sensor_lag_law"]
@@ -33,8 +33,7 @@ def sensor_lag_law(reading, now, after, ratio, xp=jnp):
     r""":math:`s_{k+1}` from the reading :math:`s_k` and the measured quantity now and after
     the sample (:math:`y_k`, :math:`y_{k+1}`), ``ratio`` :math:`= \tau / T_s`, in the
     array module ``xp`` (JAX, or NumPy for a generator)."""
-    alpha = -xp.expm1(-1.0 / ratio)
-    beta = 1.0 - ratio * alpha
+    alpha, beta = lag_coefficients(ratio, xp)
     return reading + alpha * (now - reading) + beta * (after - now)
 
 

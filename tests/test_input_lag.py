@@ -9,7 +9,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from sk_offwhite import GreyBoxSparseRegressor, InputLag, augment, switched
+from sk_offwhite import GreyBoxSparseRegressor, InputLag, SensorLag, augment, switched
 from sk_offwhite._kinds import Kinds
 from sk_offwhite.datasets import lagged_command, make_lagged_drive, make_lagged_heater
 from sk_offwhite.datasets._lag import DRIVE_DT, DRIVE_LAG, DRIVE_THETA
@@ -96,9 +96,10 @@ def test_a_record_starts_the_lag_at_its_first_command_within_the_inputs_range():
         ({"time_constant": 1.0, "sampling_time": -1.0}, "sampling_time"),
     ],
 )
-def test_arguments_are_validated(kwargs, match):
+@pytest.mark.parametrize("lag", [InputLag, SensorLag])
+def test_the_lags_arguments_are_validated(lag, kwargs, match):
     with pytest.raises(ValueError, match=match):
-        InputLag(0, **kwargs)
+        lag(0, **kwargs)
 
 
 def test_the_generator_drives_the_motor_with_the_lagged_command():

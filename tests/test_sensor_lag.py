@@ -3,7 +3,8 @@ output: the law (exact for an output linear over the sample), its units, the out
 reads and the static output effects after it, the generator, the evidence that proposes it
 (:func:`~sk_offwhite.diagnose.lagging_outputs`), a direct fit, and the closed loop on a
 short record (the full-length run is the ``slow_sensor`` row of
-``benchmarks/bench_loop_generators.py``).
+``benchmarks/bench_loop_generators.py``). Its argument checks are the actuator lag's, in
+``test_input_lag.py``.
 """
 
 import pickle
@@ -123,19 +124,6 @@ def test_the_augmented_model_compares_by_value_and_pickles(tank):
     assert restored.output == model.output and restored.step == model.step
     assert effect.mechanism == "dynamics of the sensor of output 0"
     assert effect.richer() is None
-
-
-@pytest.mark.parametrize(
-    "kwargs, match",
-    [
-        ({"time_constant": 0.0}, "time_constant"),
-        ({"time_constant": float("nan")}, "time_constant"),
-        ({"time_constant": 1.0, "sampling_time": -1.0}, "sampling_time"),
-    ],
-)
-def test_arguments_are_validated(kwargs, match):
-    with pytest.raises(ValueError, match=match):
-        SensorLag(0, **kwargs)
 
 
 def test_the_generator_reads_the_level_through_the_lag():

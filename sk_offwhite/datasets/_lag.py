@@ -11,7 +11,7 @@ import numpy as np
 from sklearn.utils import Bunch, check_random_state
 
 from sk_offwhite._delay import delayed_command
-from sk_offwhite._effects import checked_positive
+from sk_offwhite._effects import checked_positive, lag_coefficients
 from sk_offwhite.datasets._common import (
     _bunch,
     _check_n_samples,
@@ -62,8 +62,7 @@ def lagged_command(u, time_constant: float, sampling_time: float, start=None) ->
     (:math:`p_0` = ``start``, ``u[0]`` when ``None``: settled at the first command).
     """
     u = np.asarray(u, dtype=np.float64)
-    alpha = -np.expm1(-sampling_time / time_constant)
-    beta = 1.0 - time_constant / sampling_time * alpha
+    alpha, beta = lag_coefficients(time_constant / sampling_time, np)
     output = float(u[0]) if start is None else float(start)
     seen = np.empty_like(u)
     for k, command in enumerate(u):
