@@ -1289,7 +1289,31 @@ class Backlash(Effect):
         )
 
 
-class InputLag(Effect):
+class FirstOrderLag(Effect):
+    """What the first-order lags of an input (:class:`InputLag`) and of an output
+    (:class:`~sk_offwhite.SensorLag`) share: the time constant :math:`\\tau`, a positive
+    parameter ``{name}_time_constant`` in the effects' unit of time, like the sampling time
+    :math:`T_s`, and one hidden state started at ``initial``."""
+
+    target = "hidden"
+
+    def _set_lag(self, time_constant, sampling_time, initial, name) -> None:
+        self.time_constant = checked_positive(time_constant, "time_constant")
+        self.sampling_time = checked_positive(sampling_time, "sampling_time")
+        self.initial, self.name = float(initial), name
+
+    def parameters(self) -> dict[str, Parameter]:
+        return {f"{self.name}_time_constant": _positive(self.time_constant)}
+
+    def hidden_initial(self) -> tuple[float, ...]:
+        return (self.initial,)
+
+    def ratio(self, theta):
+        r""":math:`\tau / T_s` at the parameters ``theta``."""
+        return theta[f"{self.name}_time_constant"] / self.sampling_time
+
+
+class InputLag(FirstOrderLag):
     r"""Input ``input`` reaches the plant through a first-order lag (actuator dynamics).
 
     A drive's amplifier, a valve's positioner, a heater's element: the actuator's output
@@ -1311,8 +1335,6 @@ class InputLag(Effect):
     first command, and estimated with the initial state).
     """
 
-    target = "hidden"
-
     def __init__(
         self,
         input: int,
@@ -1323,24 +1345,16 @@ class InputLag(Effect):
         name: str = "lag",
     ):
         self.input = int(input)
-        self.time_constant = checked_positive(time_constant, "time_constant")
-        self.sampling_time = checked_positive(sampling_time, "sampling_time")
-        self.initial, self.name = float(initial), name
+        self._set_lag(time_constant, sampling_time, initial, name)
 
     @property
     def hidden_states(self) -> tuple[str, ...]:
         return (f"{self.name}_output",)
 
-    def parameters(self) -> dict[str, Parameter]:
-        return {f"{self.name}_time_constant": _positive(self.time_constant)}
-
     @property
     def mechanism(self) -> str:
         """The dynamics of one input's actuator."""
         return f"dynamics of input {self.input}"
-
-    def hidden_initial(self) -> tuple[float, ...]:
-        return (self.initial,)
 
     def hidden_kinds(self, input_kinds) -> tuple[str, ...]:
         return (input_kinds[self.input],)
@@ -1356,7 +1370,7 @@ class InputLag(Effect):
         return (_widened_range(u, self.input),)
 
     def advance(self, hidden, u, theta):
-        alpha, beta = lag_coefficients(theta[f"{self.name}_time_constant"] / self.sampling_time)
+        alpha, beta = lag_coefficients(self.ratio(theta))
         output, gap = hidden[0], u[self.input] - hidden[0]
         seen = output + beta * gap
         return u.at[self.input].set(seen), jnp.reshape(output + alpha * gap, (1,))

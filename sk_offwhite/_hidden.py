@@ -194,7 +194,7 @@ def with_hidden_states(model, physics, hidden: tuple, new: tuple) -> None:
     does not have yet, whose states are appended to its ``x0``, names and kinds.
 
     The output map (unless it reads states by index), the constraints and the step see the
-    declared states only.
+    declared states only; an effect that follows the output reads ``model.declared``'s map.
     """
     n_declared = getattr(physics, "n_declared_states", physics.n_states)
     for effect in new:
@@ -208,9 +208,8 @@ def with_hidden_states(model, physics, hidden: tuple, new: tuple) -> None:
     low, high = physics.x0_bounds
     model.n_declared_states = n_declared
     model.n_states = physics.n_states + len(added)
-    follows = any(effect.follows_output for effect in hidden)
-    declared_output = getattr(model, "declared", (None, physics.output))[1] if follows else None
-    model.step = HiddenStateStep(model.step, hidden, n_declared, declared_output)
+    followed = model.declared[1] if any(e.follows_output for e in hidden) else None
+    model.step = HiddenStateStep(model.step, hidden, n_declared, followed)
     if callable(model.output) and measured_states(model.output) is None:
         model.output = _declared_only(model.output, n_declared)
     model.inequality = _declared_only(physics.inequality, n_declared)

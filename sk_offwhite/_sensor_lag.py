@@ -23,8 +23,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from ._effects import Effect, _positive, checked_positive, lag_coefficients
-from ._physics import Parameter
+from ._effects import FirstOrderLag, lag_coefficients
 
 __all__ = ["SensorLag", "sensor_lag_law"]
 
@@ -37,7 +36,7 @@ def sensor_lag_law(reading, now, after, ratio, xp=jnp):
     return reading + alpha * (now - reading) + beta * (after - now)
 
 
-class SensorLag(Effect):
+class SensorLag(FirstOrderLag):
     r"""Output ``output`` is read through a first-order lag (sensor dynamics).
 
     .. math::
@@ -54,7 +53,6 @@ class SensorLag(Effect):
     feedthrough).
     """
 
-    target = "hidden"
     follows_output = True
 
     def __init__(
@@ -67,24 +65,16 @@ class SensorLag(Effect):
         name: str = "sensor_lag",
     ):
         self.output = int(output)
-        self.time_constant = checked_positive(time_constant, "time_constant")
-        self.sampling_time = checked_positive(sampling_time, "sampling_time")
-        self.initial, self.name = float(initial), name
+        self._set_lag(time_constant, sampling_time, initial, name)
 
     @property
     def hidden_states(self) -> tuple[str, ...]:
         return (f"{self.name}_reading",)
 
-    def parameters(self) -> dict[str, Parameter]:
-        return {f"{self.name}_time_constant": _positive(self.time_constant)}
-
     @property
     def mechanism(self) -> str:
         """The dynamics of one output's sensor."""
         return f"dynamics of the sensor of output {self.output}"
-
-    def hidden_initial(self) -> tuple[float, ...]:
-        return (self.initial,)
 
     def hidden_kinds(self, input_kinds) -> tuple[str, ...]:
         return ("generic",)
@@ -92,8 +82,7 @@ class SensorLag(Effect):
     def follow(self, hidden, now, after, theta):
         """The next reading from this one and the declared outputs at samples :math:`k`
         (``now``) and :math:`k + 1` (``after``)."""
-        ratio = theta[f"{self.name}_time_constant"] / self.sampling_time
-        reading = sensor_lag_law(hidden[0], now[self.output], after[self.output], ratio)
+        reading = sensor_lag_law(hidden[0], now[self.output], after[self.output], self.ratio(theta))
         return jnp.reshape(reading, (1,))
 
     def follow_off(self, hidden, now, after):
