@@ -123,6 +123,14 @@ class InputDelay(Effect):
         """The record's input range widened by itself on each side, for every past command."""
         return (_widened_range(u, self.input),) * self.n_taps
 
+    def hidden_path(self, u, theta) -> np.ndarray:
+        """The commands before each sample: row :math:`k` holds
+        :math:`u_{k-1}, \\dots, u_{k-D}`, the record's first command before it starts."""
+        commands = np.asarray(u, float)[:, self.input]
+        padded = np.concatenate([np.full(self.n_taps, commands[0]), commands])
+        rows = np.arange(commands.size)[:, None] + self.n_taps - np.arange(1, self.n_taps + 1)
+        return padded[rows]
+
     def advance(self, hidden, u, theta):
         commands = jnp.concatenate([jnp.reshape(u[self.input], (1,)), hidden])
         samples = jnp.clip(theta[f"{self.name}_delay"] / self.sampling_time, 0.0, self.n_taps)

@@ -165,7 +165,9 @@ class Effect:
     hidden_free = True
     """Whether the hidden states' initial values are estimated with the initial state;
     ``False``: each record starts them where :meth:`hidden_start` puts them (the past
-    commands of a dead time, which only the record's first samples see)."""
+    commands of a dead time, which only the record's first samples see), and :meth:`advance`
+    updates them from the inputs alone, so that every later sample's values are known
+    (:meth:`hidden_path`) and a shooting window starts them there rather than fitting them."""
 
     def parameters(self) -> dict[str, Parameter]:
         """The effect's own parameters, with initial values and bounds."""
@@ -218,6 +220,19 @@ class Effect:
         """Bounds ``(lower, upper)`` of each hidden state's initial value on a record with
         inputs ``u`` (NumPy, one row per sample): none by default."""
         return ((-np.inf, np.inf),) * len(self.hidden_states)
+
+    def hidden_path(self, u, theta) -> np.ndarray:
+        """For an effect that fixes its hidden states (:attr:`hidden_free` false): their
+        values at every sample of a record with inputs ``u`` (NumPy, one row per sample),
+        started by :meth:`hidden_start` and moved by :meth:`advance`
+        (``theta`` the parameters by name). An effect overrides it where a closed form is
+        cheaper than stepping."""
+        hidden = np.asarray(self.hidden_start(self.hidden_initial(), u[0], theta), float)
+        path = [hidden]
+        for u_k in np.asarray(u, float)[:-1]:
+            hidden = np.asarray(self.advance(jnp.asarray(hidden), jnp.asarray(u_k), theta)[1])
+            path.append(hidden.astype(float))
+        return np.stack(path)
 
     @property
     def mechanism(self) -> str:

@@ -35,8 +35,10 @@ __all__ = [
     "SensorReading",
     "hidden_bounds",
     "hidden_start",
+    "input_determined",
     "sensor_readings",
     "with_hidden_states",
+    "with_input_determined",
 ]
 
 
@@ -107,6 +109,29 @@ def hidden_start(step, x0, u_first, theta: dict, fixed=None) -> np.ndarray:
         moved = np.asarray(effect.hidden_start(x0[part], u_first, theta), float)
         x0[part] = np.where(keep[part] & effect.hidden_free, x0[part], moved)
     return x0
+
+
+def input_determined(step, n_states: int) -> np.ndarray:
+    """Mask of the ``n_states`` states that the inputs alone determine after a record's
+    start: the hidden states of effects that fix them (``hidden_free`` false)."""
+    mask = np.zeros(n_states, bool)
+    if isinstance(step, HiddenStateStep):
+        for effect, part in step.slices():
+            mask[part] = not effect.hidden_free
+    return mask
+
+
+def with_input_determined(step, states, u, theta: dict, samples) -> np.ndarray:
+    """``states`` (one row per sample in ``samples`` of a record with inputs ``u``) with
+    the states the inputs determine (:func:`input_determined`) set to their values there
+    (:meth:`Effect.hidden_path`)."""
+    states = np.array(states, dtype=float)
+    if not isinstance(step, HiddenStateStep):
+        return states
+    for effect, part in step.slices():
+        if not effect.hidden_free:
+            states[:, part] = effect.hidden_path(u, theta)[np.asarray(samples)]
+    return states
 
 
 def sensor_readings(step) -> tuple[tuple[int, int], ...]:

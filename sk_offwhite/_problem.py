@@ -15,7 +15,13 @@ import numpy as np
 
 from ._backend import to_device
 from ._effects import Switched
-from ._hidden import hidden_bounds, hidden_start, sensor_readings
+from ._hidden import (
+    hidden_bounds,
+    hidden_start,
+    input_determined,
+    sensor_readings,
+    with_input_determined,
+)
 from ._layout import Layout
 from ._lm_device import PAD_TO, levenberg_marquardt_on_device
 from ._objective import CostWeights
@@ -74,7 +80,9 @@ def _switched(physics: PhysicsModel) -> bool:
 def _window_initial_states(model, blocks, records, segments, horizon):
     """Initial states of every segment of each record: a free run of the initial guess, or,
     where that run explodes (:func:`~sk_offwhite._start.within_reach`), the record's first
-    state with the directly measured states set to the measurement at the window's start."""
+    state with the directly measured states set to the measurement at the window's start;
+    the states the inputs determine (a dead time's past commands) where the record's
+    inputs put them."""
     params = {k: jnp.asarray(v) for k, v in blocks.items() if k != "x0"}
     theta = theta_dict(model, blocks["theta"])
     x0 = []
@@ -86,12 +94,14 @@ def _window_initial_states(model, blocks, records, segments, horizon):
             continue
         states, outputs, _ = free_run_record(model, params, start, u)
         if within_reach(outputs, z):
-            x0.extend(states[::horizon][:n_windows])
+            starts = states[::horizon][:n_windows]
         else:
-            x0.extend(
+            starts = [
                 initial_state_guess(start, model, u_k, z_k, theta)
                 for u_k, z_k in zip(u[::horizon], z[::horizon], strict=True)
-            )
+            ]
+        samples = np.arange(n_windows) * horizon
+        x0.extend(with_input_determined(model.step, starts, u, theta, samples))
     return np.asarray(x0)
 
 
@@ -175,6 +185,7 @@ def free_blocks(physics, basis, model, segments) -> dict:
     fixed = np.array([p.fixed for p in physics.parameters.values()], dtype=bool)
     record_start = segments.linked == 0
     x0_free = np.ones(segments.u.shape[0:1] + (physics.n_states,), dtype=bool)
+    x0_free[~record_start] = ~input_determined(physics.step, physics.n_states)
     x0_free[record_start] = ~physics.x0_fixed
     free = {"theta": ~fixed, "x0": x0_free}
     if model.basis is not None:

@@ -13,8 +13,11 @@ import numpy as np
 import pytest
 
 from sk_offwhite import GreyBoxSparseRegressor, InputDelay, InputLag, augment, switched
+from sk_offwhite._effects import Effect
 from sk_offwhite._hidden import hidden_start
 from sk_offwhite._kinds import Kinds
+from sk_offwhite._problem import free_blocks, initial_blocks
+from sk_offwhite._segments import make_segments
 from sk_offwhite.datasets import delayed_command, make_delayed_drive, make_delayed_heater
 from sk_offwhite.datasets._lag import DRIVE_DELAY, DRIVE_DT, DRIVE_THETA, HEATER_DELAY
 from sk_offwhite.datasets._synthetic import _first_order_physics, motor_rhs
@@ -225,7 +228,34 @@ def test_the_loop_names_the_dead_time_not_the_lag_and_recovers_the_motor():
     assert rmse["augmented physics"] < 0.1 * rmse["declared physics"], rmse
 
 
-def test_multiple_shooting_fits_the_delay_with_the_windows_past_commands_free(drive):
+def test_the_past_commands_at_every_sample_are_the_commands_before_it():
+    effect = InputDelay(0, 1.0, max_delay=3.0)
+    u = np.array([[1.0, 0.0], [2.0, 0.0], [4.0, 0.0], [8.0, 0.0], [16.0, 0.0]])
+    path = effect.hidden_path(u, {})
+    expected = [[1, 1, 1], [1, 1, 1], [2, 1, 1], [4, 2, 1], [8, 4, 2]]
+    np.testing.assert_array_equal(path, expected)
+    with jax.enable_x64(True):
+        stepped = Effect.hidden_path(effect, u, {"delay_delay": jnp.asarray(1.5)})
+    np.testing.assert_array_equal(stepped, expected)  # the default: advance, step by step
+
+
+def test_shooting_windows_start_the_past_commands_at_the_commands_before_them(drive):
+    model = augment(drive.physics, InputDelay(0, DRIVE_DT, sampling_time=DRIVE_DT, name="d"))
+    est = GreyBoxSparseRegressor(model, horizon=50)
+    records = [(drive.u, drive.z)]
+    basis, compiled = est._compile(model)
+    segments = make_segments(records, 50)
+    x0 = initial_blocks(model, basis, compiled, records, segments, 50)["x0"]
+    free = free_blocks(model, basis, compiled, segments)["x0"]
+    later = np.flatnonzero(np.asarray(segments.linked) != 0)
+    assert later.size == len(drive.u) // 50 - 1
+    np.testing.assert_array_equal(free, np.tile([True] + [False] * 8, (later.size + 1, 1)))
+    for window in later:
+        k = 50 * window
+        np.testing.assert_array_equal(x0[window, 1:], drive.u[k - 1 : k - 9 : -1, 0])
+
+
+def test_multiple_shooting_fits_the_delay_with_the_windows_past_commands_known(drive):
     model = augment(drive.physics, InputDelay(0, DRIVE_DT, sampling_time=DRIVE_DT, name="d"))
     est = GreyBoxSparseRegressor(model, horizon=50, max_iter=100).fit(drive.u, drive.z)
     assert est.converged_ and est.parameters_["d_delay"] == pytest.approx(DRIVE_DELAY, rel=0.05)
