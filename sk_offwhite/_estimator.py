@@ -19,6 +19,7 @@ from sklearn.utils.validation import _check_feature_names, _check_sample_weight,
 from ._backend import to_device
 from ._basis import compile_basis
 from ._equations import format_equations
+from ._hidden import n_declared_states
 from ._initial import estimate_initial_state
 from ._objective import CostWeights
 from ._optim import LM_SCALINGS
@@ -149,7 +150,9 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         state-space model with one state per output.
     library : pysindy feature library or RidgeBasis, default=None
         Dictionary :math:`\varphi` of the correction, evaluated on :math:`[x; u]` with the
-        physics' state and input names. ``None`` fits the physics alone.
+        physics' state and input names; :math:`x` holds the declared states only (not the
+        hidden states of an :func:`~sk_offwhite.augment`-ed effect with memory). ``None``
+        fits the physics alone.
     gamma : float, default=0.01
         :math:`\gamma`, weight of the scaled (smoothed) L1 norm of :math:`\Omega`;
         dimensionless. A term is worth keeping when the RMS change it makes in the simulated
@@ -165,8 +168,9 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         records into windows of ``horizon`` steps with their own initial states, linked by a
         continuity penalty of weight ``shooting_weight`` (multiple shooting).
     delta_states : sequence of int, default=None
-        State equations that receive the correction; ``None`` means all of them, or none
-        when ``delta_outputs`` is given.
+        State equations that receive the correction; ``None`` means every declared state
+        (the hidden states of an effect with memory are left out), or none when
+        ``delta_outputs`` is given.
     delta_outputs : sequence of int, default=None
         Outputs that receive the correction (a static correction of the output map,
         evaluated on the same dictionary of :math:`[x; u]`); ``None`` means none.
@@ -424,7 +428,8 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
 
     def _delta_states(self, physics: PhysicsModel) -> tuple[int, ...]:
         if self.delta_states is None:
-            return () if self.delta_outputs is not None else tuple(range(physics.n_states))
+            every = tuple(range(n_declared_states(physics)))
+            return () if self.delta_outputs is not None else every
         allow_empty = self.delta_outputs is not None
         return _indices(self.delta_states, physics.n_states, "delta_states", allow_empty)
 
@@ -497,7 +502,8 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         delta_states, delta_outputs = self._delta_states(physics), self._delta_outputs(n_outputs)
         basis = None
         if self.library is not None:
-            features = list(physics.state_names) + list(physics.input_names)
+            states = physics.state_names[: n_declared_states(physics)]
+            features = list(states) + list(physics.input_names)
             n_rows = len(delta_states) + len(delta_outputs)
             basis = compile_basis(self.library, features, n_rows, self.random_state)
         return basis, build_model(physics, basis, delta_states, delta_outputs)

@@ -36,6 +36,7 @@ __all__ = [
     "hidden_bounds",
     "hidden_start",
     "input_determined",
+    "n_declared_states",
     "sensor_readings",
     "with_hidden_states",
     "with_input_determined",
@@ -109,6 +110,12 @@ def hidden_start(step, x0, u_first, theta: dict, fixed=None) -> np.ndarray:
         moved = np.asarray(effect.hidden_start(x0[part], u_first, theta), float)
         x0[part] = np.where(keep[part] & effect.hidden_free, x0[part], moved)
     return x0
+
+
+def n_declared_states(physics) -> int:
+    """The number of states ``physics`` declares: its states less the hidden states of its
+    effects (:func:`~sk_offwhite.augment`)."""
+    return getattr(physics, "n_declared_states", physics.n_states)
 
 
 def input_determined(step, n_states: int) -> np.ndarray:
@@ -221,7 +228,7 @@ def with_hidden_states(model, physics, hidden: tuple, new: tuple) -> None:
     The output map (unless it reads states by index), the constraints and the step see the
     declared states only; an effect that follows the output reads ``model.declared``'s map.
     """
-    n_declared = getattr(physics, "n_declared_states", physics.n_states)
+    n_declared = n_declared_states(physics)
     for effect in new:
         index = getattr(effect, "input", None)
         if index is not None and not 0 <= index < physics.n_inputs:

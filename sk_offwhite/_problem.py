@@ -19,6 +19,7 @@ from ._hidden import (
     hidden_bounds,
     hidden_start,
     input_determined,
+    n_declared_states,
     sensor_readings,
     with_input_determined,
 )
@@ -69,6 +70,7 @@ def build_model(
         inequality=physics.inequality,
         equality=physics.equality,
         free_multiple=PAD_TO if _switched(physics) else 1,
+        feature_states=None if basis is None else n_declared_states(physics),
     )
 
 

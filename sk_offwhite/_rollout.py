@@ -70,6 +70,9 @@ class Model:
     free_multiple : int
         The solver pads the free vector to a multiple of this many variables (1: none; a
         model with switched effects, so that its switch settings share one program).
+    feature_states : int or None
+        The dictionary reads the first ``feature_states`` states and the inputs (the
+        declared states of a model whose effects carry hidden states); ``None``: all.
     """
 
     step: Callable
@@ -82,6 +85,7 @@ class Model:
     equality: Callable | None = None
     free_multiple: int = 1
     delta_outputs: tuple[int, ...] = ()
+    feature_states: int | None = None
 
 
 def theta_dict(model: Model, theta) -> dict:
@@ -106,9 +110,10 @@ def output_correction(model: Model, params: dict, x, u, n_outputs: int):
 
 
 def _delta_rows(model: Model, params: dict, x, u):
-    r"""Every row of the correction, :math:`\sum_j \Omega_{ij} \Phi_{ij}([x; u])`."""
+    r"""Every row of the correction, :math:`\sum_j \Omega_{ij} \Phi_{ij}([x; u])`, with
+    :math:`x` the states the dictionary reads (``model.feature_states``)."""
     inner = {name: params[name] for name in model.inner_names}
-    features = model.basis(inner, jnp.concatenate([x, u]))
+    features = model.basis(inner, jnp.concatenate([x[: model.feature_states], u]))
     return multiply_add(params["omega"], features)
 
 

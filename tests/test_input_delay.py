@@ -10,6 +10,7 @@ from types import SimpleNamespace
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pysindy as ps
 import pytest
 
 from sk_offwhite import GreyBoxSparseRegressor, InputDelay, InputLag, augment, switched
@@ -253,6 +254,16 @@ def test_shooting_windows_start_the_past_commands_at_the_commands_before_them(dr
     for window in later:
         k = 50 * window
         np.testing.assert_array_equal(x0[window, 1:], drive.u[k - 1 : k - 9 : -1, 0])
+
+
+def test_the_correction_reads_and_corrects_the_declared_states_only(drive):
+    model = augment(drive.physics, InputDelay(0, DRIVE_DT, sampling_time=DRIVE_DT, name="d"))
+    library = ps.PolynomialLibrary(degree=2)
+    est = GreyBoxSparseRegressor(model, library=library, gamma=1e-3, max_iter=20)
+    est.fit(drive.u[:200], drive.z[:200])
+    assert est.delta_states_ == (0,) and np.shape(est.coef_) == (1, 6)
+    assert est.feature_names_ == ["1", "omega", "u", "omega^2", "omega u", "u^2"]
+    assert np.all(np.isfinite(est.predict(drive.u_val[:100])))
 
 
 def test_multiple_shooting_fits_the_delay_with_the_windows_past_commands_known(drive):

@@ -30,6 +30,7 @@ from dataclasses import dataclass, field, replace
 import jax
 import numpy as np
 
+from .._hidden import n_declared_states
 from ..diagnose import residual_regions
 
 __all__ = ["Hypothesis", "Term", "evidence_hypotheses", "form_hypotheses", "rank_terms"]
@@ -74,7 +75,7 @@ def _basis_values(est, run, u) -> np.ndarray:
     from .._basis import evaluate_matrix
 
     basis, _ = est._compile(est.physics_)
-    v = np.hstack([run.states, np.asarray(u, float)])
+    v = _dictionary_signals(est, run, u)
     with jax.enable_x64(True):
         return np.asarray(evaluate_matrix(basis, est.inner_params_, v))
 
@@ -180,13 +181,19 @@ def _hypothesis(state, equation, terms, delta, run, signals) -> Hypothesis:
 
 
 def _variable_names(est) -> tuple[str, ...]:
-    """Names of ``v = [x; u]`` the dictionary is evaluated on."""
-    return tuple(est.physics_.state_names) + tuple(est.physics_.input_names)
+    """Names of ``v = [x; u]`` the dictionary is evaluated on (the declared states')."""
+    declared = est.physics_.state_names[: n_declared_states(est.physics_)]
+    return tuple(declared) + tuple(est.physics_.input_names)
+
+
+def _dictionary_signals(est, run, u) -> np.ndarray:
+    """``v = [x; u]`` along ``run``, one row per sample: the declared states and the inputs."""
+    return np.hstack([run.states[:, : n_declared_states(est.physics_)], np.asarray(u, float)])
 
 
 def _signals(est, run, u) -> dict:
     names = _variable_names(est)
-    return dict(zip(names, np.hstack([run.states, np.asarray(u, float)]).T, strict=True))
+    return dict(zip(names, _dictionary_signals(est, run, u).T, strict=True))
 
 
 def form_hypotheses(est, run, u) -> list[Hypothesis]:

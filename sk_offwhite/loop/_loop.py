@@ -60,6 +60,7 @@ from .._cache import release_package_programs
 from .._effects import DictionaryTerm, augment, relaxations, time_step
 from .._equations import output_name
 from .._estimator import GreyBoxSparseRegressor, RunawayParameterWarning
+from .._hidden import n_declared_states
 from .._kinds import Kinds, physical_kinds
 from .._optim import LM_SCALINGS
 from .._parallel import gather, launch, start_workers
@@ -1059,7 +1060,7 @@ def _declared_kinds(physics) -> tuple[int, Kinds]:
     no levels or velocities of the plant; on a physics with a dead time, whose 25 past
     commands of a one-signed generic input read as levels, the overflows between them
     alone made 600 candidates that act on nothing."""
-    n_declared = getattr(physics, "n_declared_states", physics.n_states)
+    n_declared = n_declared_states(physics)
     kinds = physical_kinds(physics)
     partner = {v: p for v, p in kinds.partner.items() if max(v, p) < n_declared}
     return n_declared, kinds._replace(states=kinds.states[:n_declared], partner=partner)
@@ -1068,10 +1069,9 @@ def _declared_kinds(physics) -> tuple[int, Kinds]:
 def _promoted(physics, hypotheses, library, names, dt: float, settings) -> list:
     """The strongest dictionary terms as candidates (:func:`promoted_terms`), none on a
     physics with hidden states (an effect with memory, :mod:`sk_offwhite._hidden`): the
-    dictionary's features then hold them, and a term, which reads the declared states
-    and the inputs in the step, could not be evaluated there (run on the backlash servo's
-    augmented physics, three such candidates failed)."""
-    if physics.n_states > getattr(physics, "n_declared_states", physics.n_states):
+    dictionary reads the commands, where a term in the declared step would read the
+    input the effects deliver (a backlash's, a delay's), another function."""
+    if physics.n_states > n_declared_states(physics):
         return []
     return promoted_terms(hypotheses, library, names, dt, settings.n_promoted)
 
