@@ -1471,7 +1471,9 @@ class Switched(Effect):
     share one compiled program (``LoopSettings(share_programs=True)`` fits the loop's
     candidate sets this way, see :mod:`sk_offwhite.loop._switchboard`). An effect that is off is not
     computed (a ``lax.cond`` on the switch) and has zero derivatives; a fit leaves its
-    parameters where they start.
+    parameters where they start. The memory of an effect whose hidden states follow the
+    inputs alone (``hidden_free`` false: a dead time's past commands) follows them on or
+    off, so a shooting window starts it where the inputs put it either way.
     """
 
     def __init__(self, effect: Effect):
@@ -1520,8 +1522,20 @@ class Switched(Effect):
     def hidden_bounds(self, u) -> tuple[tuple[float, float], ...]:
         return self.effect.hidden_bounds(u)
 
+    @property
+    def hidden_free(self) -> bool:
+        return self.effect.hidden_free
+
+    def hidden_path(self, u, theta) -> np.ndarray:
+        return self.effect.hidden_path(u, theta)
+
     def advance(self, hidden, u, theta):
-        return _if_on(self.on(theta), lambda: self.effect.advance(hidden, u, theta), (u, hidden))
+        if self.effect.hidden_free:
+            return _if_on(
+                self.on(theta), lambda: self.effect.advance(hidden, u, theta), (u, hidden)
+            )
+        seen, memory = self.effect.advance(hidden, u, theta)  # the inputs' memory, on or off
+        return _if_on(self.on(theta), lambda: seen, u), memory
 
     @property
     def follows_output(self) -> bool:

@@ -118,6 +118,19 @@ def test_a_switched_off_delay_is_the_declared_model(drive):
     assert float(step[0]) == pytest.approx(float(declared[0]))
 
 
+def test_a_switched_delay_keeps_following_the_commands_when_off(drive):
+    effect = switched(InputDelay(0, DRIVE_DT, sampling_time=DRIVE_DT, max_delay=3 * DRIVE_DT))
+    assert not effect.hidden_free
+    u = drive.u[:6]
+    np.testing.assert_array_equal(effect.hidden_path(u, {}), effect.effect.hidden_path(u, {}))
+    for on in (0.0, 1.0):
+        theta = {"delay_delay": jnp.asarray(DRIVE_DT), "delay_on": jnp.asarray(on)}
+        with jax.enable_x64(True):
+            seen, memory = effect.advance(jnp.array([0.1, 0.2, 0.3]), jnp.array([0.7]), theta)
+        np.testing.assert_allclose(memory, [0.7, 0.1, 0.2])
+        assert float(seen[0]) == pytest.approx(0.1 if on else 0.7)
+
+
 def test_the_richer_delay_reaches_twice_as_far_from_the_fitted_delay():
     effect = InputDelay(0, 0.05, sampling_time=0.05, name="delay_u")
     richer = effect.richer()
@@ -240,8 +253,10 @@ def test_the_past_commands_at_every_sample_are_the_commands_before_it():
     np.testing.assert_array_equal(stepped, expected)  # the default: advance, step by step
 
 
-def test_shooting_windows_start_the_past_commands_at_the_commands_before_them(drive):
-    model = augment(drive.physics, InputDelay(0, DRIVE_DT, sampling_time=DRIVE_DT, name="d"))
+@pytest.mark.parametrize("wrap", [lambda effect: effect, switched], ids=["plain", "switched"])
+def test_shooting_windows_start_the_past_commands_at_the_commands_before_them(drive, wrap):
+    effect = wrap(InputDelay(0, DRIVE_DT, sampling_time=DRIVE_DT, name="d"))
+    model = augment(drive.physics, effect)
     est = GreyBoxSparseRegressor(model, horizon=50)
     records = [(drive.u, drive.z)]
     basis, compiled = est._compile(model)
