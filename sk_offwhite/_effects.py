@@ -224,15 +224,17 @@ class Effect:
     def hidden_path(self, u, theta) -> np.ndarray:
         """For an effect that fixes its hidden states (:attr:`hidden_free` false): their
         values at every sample of a record with inputs ``u`` (NumPy, one row per sample),
-        started by :meth:`hidden_start` and moved by :meth:`advance`
-        (``theta`` the parameters by name). An effect overrides it where a closed form is
-        cheaper than stepping."""
-        hidden = np.asarray(self.hidden_start(self.hidden_initial(), u[0], theta), float)
-        path = [hidden]
-        for u_k in np.asarray(u, float)[:-1]:
-            hidden = np.asarray(self.advance(jnp.asarray(hidden), jnp.asarray(u_k), theta)[1])
-            path.append(hidden.astype(float))
-        return np.stack(path)
+        started by :meth:`hidden_start` and moved by :meth:`advance` (one ``lax.scan`` in
+        double precision; ``theta`` the parameters by name). An effect overrides it where a
+        closed form is cheaper."""
+        start = np.asarray(self.hidden_start(self.hidden_initial(), u[0], theta), float)
+
+        def step(hidden, u_k):
+            return self.advance(hidden, u_k, theta)[1], hidden
+
+        with jax.enable_x64(True):
+            _, path = jax.lax.scan(step, jnp.asarray(start), jnp.asarray(u, float))
+        return np.asarray(path, float)
 
     @property
     def mechanism(self) -> str:
