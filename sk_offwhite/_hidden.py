@@ -20,6 +20,27 @@ constraints see only :math:`x`; the hidden states' initial values are estimated 
 declared ones (they are ordinary, free entries of :math:`x_0`), unless the effect fixes
 them (``Effect.hidden_free = False``: each record starts them where the effect's
 ``hidden_start`` puts them).
+
+Where they are estimated and where they are not:
+
+- every record starts them where ``hidden_start`` puts them (its first input, or the
+  first measurement for a slow sensor), inside the bounds ``hidden_bounds`` gives on
+  that record; free ones are then fitted with the initial state;
+- a multiple-shooting window after a record's first frees them too, except the states
+  the inputs alone determine (``hidden_free`` false): those start where the record's
+  inputs put them (``Effect.hidden_path``: a dead time's past commands are the commands
+  before the window), so no window fits what is known;
+- the sparse correction :math:`\delta` neither reads them nor corrects them: its
+  dictionary is evaluated on the declared states and the inputs, and its rows are the
+  declared states' unless ``delta_states`` names others;
+- the loop proposes effects on the declared states only.
+
+An effect with memory of one's own sets ``hidden_states`` (their names) and implements
+``advance`` (or ``follows_output`` and ``follow``), ``hidden_initial`` and, where a
+guess may lie where the first step forgets it, ``hidden_start`` and ``hidden_bounds``.
+One whose memory follows the inputs alone, whatever the parameters, may set
+``hidden_free = False``; its ``hidden_path`` then steps ``advance`` along a record, or
+gives the path in closed form.
 """
 
 from __future__ import annotations
