@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ..certify import UnidentifiableWarning, identifiability
+from ._hypotheses import _signals
 from ._loop import analyse_model
 from ._scoring import MODEL_LABELS, _protocol_metrics
 
@@ -72,11 +73,10 @@ def _figure_correction(result, u, path: Path) -> bool:
     est = result.evidence
     run = est.simulate(u)
     fig, axes = _figure((4.5 * len(hypotheses), 3.6), nrows=1, ncols=len(hypotheses))
-    names = list(est.physics_.state_names) + list(est.physics_.input_names)
-    signals = np.hstack([run.states, np.asarray(u, float)])
+    signals = _signals(est, run, u)
     for ax, hyp in zip(np.atleast_1d(axes), hypotheses, strict=True):
-        variable = hyp.region[0] if hyp.region else (hyp.variables or names[:1])[0]
-        ax.plot(signals[:, names.index(variable)], hyp.correction, ".", ms=2)
+        variable = hyp.region[0] if hyp.region else (hyp.variables or list(signals))[0]
+        ax.plot(signals[variable], hyp.correction, ".", ms=2)
         ax.set_xlabel(f"{variable} (simulated)")
         what = "linearised δ" if hyp.source == "evidence" else "fitted δ"
         ax.set_ylabel(f"{what}, {hyp.equation} equation")
