@@ -24,7 +24,7 @@ from ._hidden import (
     with_input_determined,
 )
 from ._layout import Layout
-from ._lm_device import PAD_TO, levenberg_marquardt_on_device
+from ._lm_device import PAD_TO, levenberg_marquardt_on_device, padded_size
 from ._objective import CostWeights
 from ._optim import Problem, SolverResult, run_optax
 from ._physics import PhysicsModel, measured_states
@@ -69,14 +69,31 @@ def build_model(
         inner_names=() if basis is None else tuple(basis.init_params),
         inequality=physics.inequality,
         equality=physics.equality,
-        free_multiple=PAD_TO if _switched(physics) else 1,
+        free_multiple=_board_multiple(physics),
         feature_states=None if basis is None else n_declared_states(physics),
     )
 
 
-def _switched(physics: PhysicsModel) -> bool:
-    """Whether ``physics`` has effects behind switches (a switchboard's model)."""
-    return any(isinstance(effect, Switched) for effect in getattr(physics, "effects", ()))
+def _switched(physics: PhysicsModel) -> tuple[Switched, ...]:
+    """The effects of ``physics`` behind switches (a switchboard's model: not empty)."""
+    return tuple(e for e in getattr(physics, "effects", ()) if isinstance(e, Switched))
+
+
+def _board_multiple(physics: PhysicsModel) -> int:
+    """The multiple to which the solver pads the free vector of ``physics``
+    (``Model.free_multiple``): 1 without switched effects; with them, its parameters other
+    than the switches plus its states, rounded up to :data:`~sk_offwhite._lm_device.PAD_TO`.
+
+    A fit on the board frees at most that many variables on the whole record (every
+    parameter and one initial state), so every switch setting pads to the same size and
+    shares one compiled program per record layout; over shooting windows, with more
+    initial states, the sizes are the next multiples. A multiple of 4 instead measured
+    2-3 programs per layout for the Cascaded Tanks' 15 candidates."""
+    board = _switched(physics)
+    if not board:
+        return 1
+    n_variables = len(physics.parameter_names) - len(board) + physics.n_states
+    return padded_size(n_variables, PAD_TO)
 
 
 def _window_initial_states(model, blocks, records, segments, horizon):

@@ -1,6 +1,7 @@
 """Named effects added to a physics model: structure, semantics and what they buy on data."""
 
 import pickle
+from types import SimpleNamespace
 
 import jax
 import jax.numpy as jnp
@@ -16,10 +17,12 @@ from sk_offwhite._effects import (
     DeadZone,
     DifferenceDeadZone,
     Friction,
+    InputLag,
     InputSaturation,
     Leak,
     OutputSaturation,
     Overflow,
+    RelaxedLaw,
     augment,
     switched,
     switches,
@@ -28,7 +31,9 @@ from sk_offwhite._lm_device import _run_on_device
 from sk_offwhite._problem import build_model
 from sk_offwhite._rollout import free_run
 from sk_offwhite.datasets import cascaded_tanks_physics, make_cascaded_tanks, make_coulomb_drive
-from sk_offwhite.loop._switchboard import SeparateModels, Switchboard
+from sk_offwhite.loop import LoopSettings
+from sk_offwhite.loop._loop import _quick_fit, _rank_alone
+from sk_offwhite.loop._switchboard import SeparateModels, Switchboard, single_effect_models
 
 
 def _theta(physics):
@@ -275,3 +280,33 @@ def test_friction_width_keeps_a_floor_so_a_bad_start_still_finds_the_friction():
     assert fitted["friction_v_coulomb"] == pytest.approx(rates["coulomb"], rel=0.05)
     assert fitted["friction_v_width"] == pytest.approx(rates["width"], rel=0.1)
     assert fitted["bias_v_value"] == pytest.approx(rates["offset"], rel=0.05)
+
+
+def test_single_effects_share_a_board_unless_they_carry_memory_or_relax_a_law():
+    spill, leak, bias = Overflow(0, 4.0, sink=1, name="spill"), Leak(1), Bias(0)
+    lag, law = InputLag(0, 0.1), RelaxedLaw("k1", 0.1)
+    models = single_effect_models(cascaded_tanks_physics(), [spill, lag, leak, law, bias])
+    board, separate = models[0], models[1]
+    assert isinstance(board, Switchboard) and isinstance(separate, SeparateModels)
+    assert models == [board, separate, board, separate, board]
+    assert [switch.effect for switch in board.board] == [spill, leak, bias]
+    alone = single_effect_models(cascaded_tanks_physics(), [spill, lag])
+    assert all(isinstance(model, SeparateModels) for model in alone)
+
+
+@pytest.mark.filterwarnings("ignore:.*max_iter reached")
+def test_single_effects_on_a_board_fit_as_alone_on_one_program_per_layout():
+    data = make_cascaded_tanks(n_samples=200, random_state=1)
+    physics = cascaded_tanks_physics()
+    effects = [Overflow(0, 4.0, sink=1, name="spill"), Leak(1), Bias(0)]
+    candidates = [SimpleNamespace(effect=effect) for effect in effects]
+    settings = LoopSettings(horizon=64, max_iter=30)
+    jax.clear_caches()
+    on_board = _rank_alone(physics, candidates, data.u, data.z, settings, [])
+    # windows and whole record: two layouts; the three sets pad to one size on each
+    assert _run_on_device._cache_size() == 2
+    separate = SeparateModels.of(physics, effects)
+    for rmse, candidate, fitted in on_board:
+        alone = _quick_fit(separate, (candidate.effect,), {}, data.u, data.z, settings)
+        assert rmse == pytest.approx(alone[0], rel=1e-6)
+        assert fitted.keys() == alone[1].keys()

@@ -83,7 +83,7 @@ from ._gauge import fit_undetermined_directions, held_note, held_parameters, hol
 from ._hypotheses import evidence_hypotheses, form_hypotheses
 from ._progress import StageClock, logger
 from ._scoring import MODEL_LABELS, held_out_rmse
-from ._switchboard import effect_sets
+from ._switchboard import Switchboard, effect_sets, single_effect_models
 
 __all__ = [
     "LoopResult",
@@ -430,18 +430,21 @@ def _trying(function, *args):
         return None, str(error)
 
 
-def _attempt_all(failures: list, calls, settings: LoopSettings | None = None) -> list:
+def _attempt_all(
+    failures: list, calls, settings: LoopSettings | None = None, first: int = 1, total=None
+) -> list:
     """:func:`_attempt` of each ``(label, function, *args)`` of ``calls``, the calls run by
     ``settings.n_jobs`` processes (this one without ``settings``); values in order
     (``None`` where a call failed). Each value is logged as it arrives when there are
-    several."""
+    several, as the ``first``-th, ... of ``total`` (default: of ``calls``)."""
     labels = [call[0] for call in calls]
+    total = len(calls) if total is None else total
 
     def progress(k, label):
-        logger.info("  %s (%d of %d)", label, k, len(calls))
+        logger.info("  %s (%d of %d)", label, first + k - 1, total)
 
     jobs = launch(_trying, [call[1:] for call in calls], *_processes(settings))
-    outcomes = gather(jobs, labels, progress if len(calls) > 1 else None)
+    outcomes = gather(jobs, labels, progress if total > 1 else None)
     for label, (_, error) in zip(labels, outcomes, strict=True):
         if error is not None:
             failures.append(f"{label}: {error}")
@@ -595,21 +598,46 @@ def _without(params: dict, effect) -> dict:
     return {name: value for name, value in params.items() if name not in names}
 
 
-def _rank_alone(board, candidates, u, z, settings, failures):
+def _rank_alone(physics, candidates, u, z, settings, failures):
     """``(estimation RMSE, candidate, fitted effect parameters)`` of each candidate added
-    alone, best first (``inf`` and a line in ``failures`` where the fit failed); a named
-    effect ranks before a promoted term unless the term is better by ``tolerance``."""
+    to ``physics`` alone, best first (``inf`` and a line in ``failures`` where the fit
+    failed); a named effect ranks before a promoted term unless the term is better by
+    ``tolerance``.
+
+    The candidates are fitted on a switchboard where they can share one
+    (:func:`~sk_offwhite.loop._switchboard.single_effect_models`; with ``share_programs``
+    all on one), in this process: each fit compiles nothing after the first, and a
+    worker would compile the board's programs again for itself. The others are fitted by
+    ``settings.n_jobs`` processes, each on its own model."""
+    effects = [c.effect for c in candidates]
+    if settings.share_programs:
+        models = [effect_sets(physics, effects, True)] * len(effects)
+    else:
+        models = single_effect_models(physics, effects)
     calls = [
-        (f"candidate {c.effect.name}", _quick_fit, board, (c.effect,), {}, u, z, settings)
-        for c in candidates
+        (f"candidate {effect.name}", _quick_fit, model, (effect,), {}, u, z, settings)
+        for effect, model in zip(effects, models, strict=True)
     ]
+    on_board = [isinstance(model, Switchboard) for model in models]
+    fitted = _attempt_split(failures, calls, on_board, settings)
     ranked = [
-        (np.inf, candidate, {}) if fitted is None else (fitted[0], candidate, fitted[1])
-        for candidate, fitted in zip(
-            candidates, _attempt_all(failures, calls, settings), strict=True
-        )
+        (np.inf, candidate, {}) if fit is None else (fit[0], candidate, fit[1])
+        for candidate, fit in zip(candidates, fitted, strict=True)
     ]
     return sorted(ranked, key=lambda item: item[0] * _handicap(item[1].effect, settings))
+
+
+def _attempt_split(failures: list, calls, here, settings: LoopSettings) -> list:
+    """:func:`_attempt_all` of ``calls``, those where ``here`` is true in this process and
+    the others by ``settings.n_jobs`` processes; values in the order of ``calls``."""
+    local = [call for call, flag in zip(calls, here, strict=True) if flag]
+    remote = [call for call, flag in zip(calls, here, strict=True) if not flag]
+    total = len(calls)
+    values = iter(_attempt_all(failures, local, None, total=total) if local else [])
+    if remote:
+        remote = _attempt_all(failures, remote, settings, first=len(local) + 1, total=total)
+    others = iter(remote)
+    return [next(values) if flag else next(others) for flag in here]
 
 
 def _handicap(effect, settings) -> float:
@@ -789,8 +817,7 @@ def _select_effects(
         declared_cv = cross_validated_rmse(physics, u, z, settings)
     candidates = _capped(candidates, settings.max_candidates)
     shared = settings.share_programs
-    alone = effect_sets(physics, [c.effect for c in candidates], shared)
-    ranked = _released(settings, _rank_alone(alone, candidates, u, z, settings, failures))
+    ranked = _released(settings, _rank_alone(physics, candidates, u, z, settings, failures))
     # sets compose their effects in the order of the single fits (best first)
     board = effect_sets(physics, _with_richer([c.effect for _, c, _ in ranked]), shared)
     singles = [(c.effect.name, r) for r, c, _ in ranked]

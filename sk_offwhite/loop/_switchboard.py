@@ -38,7 +38,7 @@ from typing import NamedTuple
 from .._effects import Switched, augment, switched, switches
 from .._physics import Parameter, PhysicsModel
 
-__all__ = ["SeparateModels", "Switchboard", "effect_sets"]
+__all__ = ["SeparateModels", "Switchboard", "effect_sets", "single_effect_models"]
 
 
 class SeparateModels(NamedTuple):
@@ -99,6 +99,28 @@ class Switchboard(NamedTuple):
 def effect_sets(physics: PhysicsModel, effects, shared: bool) -> Switchboard | SeparateModels:
     """A :class:`Switchboard` when ``shared``, else :class:`SeparateModels`."""
     return (Switchboard if shared else SeparateModels).of(physics, effects)
+
+
+def single_effect_models(physics: PhysicsModel, effects) -> list:
+    """For each of ``effects``, what its fit alone builds its model from: one
+    :class:`Switchboard` of the effects that can share it, whose fits then share one
+    compiled program per layout, and :class:`SeparateModels` for the others (all of them
+    when fewer than two would share the board).
+
+    An effect with memory of its own (hidden states) would add them to every fit on the
+    board, and a relaxed law changes the board's structure: each is fitted on its own
+    model.
+    """
+    sharing = [_shares_a_board(effect) for effect in effects]
+    separate = SeparateModels.of(physics, effects)
+    if sum(sharing) < 2:
+        return [separate] * len(effects)
+    board = Switchboard.of(physics, [e for e in effects if _shares_a_board(e)])
+    return [board if shares else separate for shares in sharing]
+
+
+def _shares_a_board(effect) -> bool:
+    return not effect.hidden_states and effect.target != "law"
 
 
 def _held(physics: PhysicsModel, board, on) -> dict[str, Parameter]:
