@@ -13,8 +13,10 @@ iteration is traced once, in the loop, as :mod:`sk_offwhite._initial` does for t
 state.
 
 The free vector of a model with switched effects is padded with inert variables to a
-multiple of :data:`PAD_TO` (:func:`_padded`): fits whose free counts differ by a few (the
-closed loop's effect sets on one switchboard) then share one program. The padding adds
+multiple of ``Model.free_multiple`` (:func:`_padded`; its parameters other than the switches
+plus its states, rounded up to a multiple of :data:`PAD_TO`): fits with different switch
+settings (the closed loop's candidates and effect sets on one switchboard) then share one
+program. The padding adds
 zero rows and columns to the normal equations, so the iterates are the same up to
 rounding.
 
@@ -147,9 +149,9 @@ def _run_on_device(start: _Run, problem, tol, *, model, layout, forward, per_var
 
 
 PAD_TO = 4
-"""The multiple to which the device run pads the free vector of a model with switched
-effects (``Model.free_multiple``, :func:`padded_size`), so that fits whose free counts
-differ by a few share one program."""
+"""The granularity of the size to which the device run pads the free vector of a model with
+switched effects (``Model.free_multiple``, :func:`padded_size`), so that fits with
+different switch settings share one program."""
 
 
 def padded_size(n_free: int, multiple: int) -> int:

@@ -122,7 +122,9 @@ class LoopSettings:
     ``share_programs`` whether every effect set is fitted on one compiled program (a
     :class:`~sk_offwhite.loop._switchboard.Switchboard`: less compilation, see that
     module; off by default: measured faster in one process, slower with workers, and its
-    rounding flipped a near-tie of the backlash servo's cross-validation).
+    rounding flipped a near-tie of the backlash servo's cross-validation). The single
+    candidates share one board either way, but for those with memory of their own and
+    relaxed laws (:func:`~sk_offwhite.loop._switchboard.single_effect_models`).
     ``selection`` is how every choice is scored: ``"cv"``, the mean held-out RMSE over
     ``n_folds`` contiguous blocks; ``"tail"``, the held-out RMSE of the last
     ``tail_fraction`` of the record (after its ``init_window``) when the rest is

@@ -6,12 +6,12 @@ candidate fits, the CV folds, the initial-state estimation). :class:`Switchboard
 candidate behind a switch (:class:`~sk_offwhite.Switched`) in one model, so the sets differ
 only in parameter values: a switched-off effect is not computed, and its parameters are held
 where they are (fixed), so a set's fit has the free variables it has on its own model. The
-solver pads its free vector to a multiple of
-:data:`~sk_offwhite._lm_device.PAD_TO`, so sets whose free counts differ by a few share one
-compiled program per layout. Both compose a set's effects in the order the candidates are
-given.
+solver pads its free vector to one size for every set (``Model.free_multiple``), so the
+sets share one compiled program per layout. Both compose a set's effects in the order the
+candidates are given.
 
-Measured on the Cascaded Tanks main job in one process (jax 0.10.2, 2 CPU cores, no
+Measured on the Cascaded Tanks main job in one process, with the free vector padded to a
+multiple of 4 (an earlier rule) (jax 0.10.2, 2 CPU cores, no
 compilation cache, alternated with the previous commit): the same report to every printed
 digit, 99.5 and 86.6 s against 117.0 and 106.4 s, of which XLA compilation 68.1 and 59.2 s
 against 86.6 and 77.8 s; with the programs kept between stages, 113 compilations (28 solver
@@ -26,8 +26,21 @@ samples, 2 folds, ``max_iter=100``) separate models choose the backlash alone (C
 ``jnp.where``, and the backlash alone (0.00104, with friction 0.00114) once it went
 through the same ``lax.cond`` as the other effects. The backlash's fit on the whole record
 agrees with its own model's to 1.4e-7 relative: the folds' fits, stopped at
-``max_iter``, amplify the rounding. The loop therefore uses separate models unless
-``LoopSettings(share_programs=True)``.
+``max_iter``, amplify the rounding. The loop therefore uses separate models for the effect
+sets unless ``LoopSettings(share_programs=True)``.
+
+The single candidates are another matter (:func:`single_effect_models`). Each is fitted
+once, on the whole record only (no fold), and a candidate's fit compiles for seconds and
+computes for a tenth of one: on the Cascaded Tanks (1024 samples, jax 0.10.2, 2 CPU cores)
+a candidate's fit on its own model took 2.9-3.7 s, 2.4-2.9 s of it XLA compilation. On one
+board, in one process, the first fit compiles the board's programs and the others compile
+nothing; a switched model pads its free vector to one size for every switch setting
+(``Model.free_multiple``), so the board compiles one solver program per record layout. The
+README's main job, the compilation cache empty, two workers: the 15 candidates took 15 s
+instead of 45 s, the whole command 192 s instead of 214 s, and its report is the same (the
+RMSEs of ``results.json`` to 14 digits). Effects with memory of their own stay on their own
+models (their hidden states would ride along in every fit on the board), as do relaxed laws
+(each changes the board's structure).
 """
 
 from __future__ import annotations
