@@ -12,7 +12,7 @@ from sk_offwhite import GreyBoxSparseRegressor, fit_gamma_path
 from sk_offwhite._parallel import gather, launch, start_workers
 from sk_offwhite.datasets import make_leaky_tank
 from sk_offwhite.loop import LoopSettings, close_the_loop
-from sk_offwhite.loop._loop import _attempt_all, _fold_rmse
+from sk_offwhite.loop._loop import _attempt_all, _attempt_split, _fold_rmse
 
 
 @pytest.mark.parametrize("n_jobs", [None, 2])
@@ -47,6 +47,19 @@ def test_a_failing_call_in_a_worker_is_a_line_of_the_failures_and_the_others_go_
     values = _attempt_all(failures, calls, LoopSettings(n_jobs=2))
     assert values == [2.0, None]
     assert failures == ["root of -1: math domain error"]
+
+
+def test_calls_split_between_this_process_and_workers_come_back_in_order(caplog):
+    failures = []
+    roots = [4.0, 9.0, -1.0, 16.0, 25.0]
+    calls = [(f"root of {x:g}", math.sqrt, x) for x in roots]
+    here = [True, False, False, True, False]
+    with caplog.at_level("INFO", logger="sk_offwhite.loop"):
+        values = _attempt_split(failures, calls, here, LoopSettings(n_jobs=2))
+    assert values == [2.0, 3.0, None, 4.0, 5.0]
+    assert failures == ["root of -1: math domain error"]
+    counted = [message.rsplit("(", 1)[1] for message in caplog.messages]
+    assert counted == [f"{k} of 5)" for k in range(1, 6)]
 
 
 @pytest.mark.parametrize("in_worker", [False, True])

@@ -635,11 +635,13 @@ def _attempt_split(failures: list, calls, here, settings: LoopSettings) -> list:
     local = [call for call, flag in zip(calls, here, strict=True) if flag]
     remote = [call for call, flag in zip(calls, here, strict=True) if not flag]
     total = len(calls)
-    values = iter(_attempt_all(failures, local, None, total=total) if local else [])
-    if remote:
-        remote = _attempt_all(failures, remote, settings, first=len(local) + 1, total=total)
-    others = iter(remote)
-    return [next(values) if flag else next(others) for flag in here]
+    mine = iter(_attempt_all(failures, local, None, total=total) if local else [])
+    theirs = iter(
+        _attempt_all(failures, remote, settings, first=len(local) + 1, total=total)
+        if remote
+        else []
+    )
+    return [next(mine) if flag else next(theirs) for flag in here]
 
 
 def _handicap(effect, settings) -> float:

@@ -10,9 +10,9 @@ solver pads its free vector to one size for every set (``Model.free_multiple``),
 sets share one compiled program per layout. Both compose a set's effects in the order the
 candidates are given.
 
-Measured on the Cascaded Tanks main job in one process, with the free vector padded to a
-multiple of 4 (an earlier rule) (jax 0.10.2, 2 CPU cores, no
-compilation cache, alternated with the previous commit): the same report to every printed
+Measured on the Cascaded Tanks main job in one process (the free vector then padded to a
+multiple of 4; jax 0.10.2, 2 CPU cores, no compilation cache, alternated with the previous
+commit): the same report to every printed
 digit, 99.5 and 86.6 s against 117.0 and 106.4 s, of which XLA compilation 68.1 and 59.2 s
 against 86.6 and 77.8 s; with the programs kept between stages, 113 compilations (28 solver
 runs) against 243 (61). With two worker processes the board was slower (a first run 115.8 s
@@ -30,7 +30,7 @@ agrees with its own model's to 1.4e-7 relative: the folds' fits, stopped at
 sets unless ``LoopSettings(share_programs=True)``.
 
 The single candidates are another matter (:func:`single_effect_models`). Each is fitted
-once, on the whole record only (no fold), and a candidate's fit compiles for seconds and
+once, on the estimation record (no fold), and a candidate's fit compiles for seconds and
 computes for a tenth of one: on the Cascaded Tanks (1024 samples, jax 0.10.2, 2 CPU cores)
 a candidate's fit on its own model took 2.9-3.7 s, 2.4-2.9 s of it XLA compilation. On one
 board, in one process, the first fit compiles the board's programs and the others compile
@@ -38,7 +38,7 @@ nothing; a switched model pads its free vector to one size for every switch sett
 (``Model.free_multiple``), so the board compiles one solver program per record layout. The
 README's main job, the compilation cache empty, two workers: the 15 candidates took 15 s
 instead of 45 s, the whole command 192 s instead of 214 s, and its report is the same (the
-RMSEs of ``results.json`` to 14 digits). Effects with memory of their own stay on their own
+RMSEs of ``results.json`` to 12 digits or more). Effects with memory of their own stay on their own
 models (their hidden states would ride along in every fit on the board), as do relaxed laws
 (each changes the board's structure).
 """
