@@ -87,8 +87,8 @@ def _board_multiple(physics: PhysicsModel) -> int:
     A fit on the board frees at most that many variables on the whole record (every
     parameter and one initial state), so every switch setting pads to the same size and
     shares one compiled program per record layout; over shooting windows, with more
-    initial states, the sizes are the next multiples. A multiple of 4 instead measured
-    2-3 programs per layout for the Cascaded Tanks' 15 candidates."""
+    initial states, the sizes are the next multiples. Padded to a multiple of 4 (the
+    earlier rule), the Cascaded Tanks' 15 candidates took 23 s instead of 15 s."""
     board = _switched(physics)
     if not board:
         return 1
