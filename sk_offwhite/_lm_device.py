@@ -16,9 +16,8 @@ The free vector of a model with switched effects is padded with inert variables 
 multiple of ``Model.free_multiple`` (:func:`_padded`; its parameters other than the switches
 plus its states, rounded up to a multiple of :data:`PAD_TO`): fits with different switch
 settings (the closed loop's candidates and effect sets on one switchboard) then share one
-program. The padding adds
-zero rows and columns to the normal equations, so the iterates are the same up to
-rounding.
+program. The padding adds zero rows and columns to the normal equations, so the iterates
+are the same up to rounding.
 
 The host loop stays for ``verbose`` runs (it prints each iteration) and for the coloured
 Jacobian of :mod:`sk_offwhite._structured`, whose normal equations are sparse.

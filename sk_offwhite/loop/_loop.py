@@ -439,6 +439,8 @@ def _attempt_all(
     ``settings.n_jobs`` processes (this one without ``settings``); values in order
     (``None`` where a call failed). Each value is logged as it arrives when there are
     several, as the ``first``-th, ... of ``total`` (default: of ``calls``)."""
+    if not calls:
+        return []  # no worker started for nothing
     labels = [call[0] for call in calls]
     total = len(calls) if total is None else total
 
@@ -635,12 +637,8 @@ def _attempt_split(failures: list, calls, here, settings: LoopSettings) -> list:
     local = [call for call, flag in zip(calls, here, strict=True) if flag]
     remote = [call for call, flag in zip(calls, here, strict=True) if not flag]
     total = len(calls)
-    mine = iter(_attempt_all(failures, local, None, total=total) if local else [])
-    theirs = iter(
-        _attempt_all(failures, remote, settings, first=len(local) + 1, total=total)
-        if remote
-        else []
-    )
+    mine = iter(_attempt_all(failures, local, None, total=total))
+    theirs = iter(_attempt_all(failures, remote, settings, first=len(local) + 1, total=total))
     return [next(mine) if flag else next(theirs) for flag in here]
 
 

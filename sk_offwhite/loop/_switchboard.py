@@ -12,13 +12,13 @@ candidates are given.
 
 Measured on the Cascaded Tanks main job in one process (the free vector then padded to a
 multiple of 4; jax 0.10.2, 2 CPU cores, no compilation cache, alternated with the previous
-commit): the same report to every printed
-digit, 99.5 and 86.6 s against 117.0 and 106.4 s, of which XLA compilation 68.1 and 59.2 s
-against 86.6 and 77.8 s; with the programs kept between stages, 113 compilations (28 solver
-runs) against 243 (61). With two worker processes the board was slower (a first run 115.8 s
-against 91.0 s, with the cache filled 32.9-40.8 s against 30.2-34.7 s):
-each worker compiles or loads the board's programs for itself, where separate models are
-each compiled by the one worker that fits them. And the board's rounding can flip a
+commit): the same report to every printed digit, 99.5 and 86.6 s against 117.0 and
+106.4 s, of which XLA compilation 68.1 and 59.2 s against 86.6 and 77.8 s; with the
+programs kept between stages, 113 compilations (28 solver runs) against 243 (61). With
+two worker processes the board was slower (a first run 115.8 s against 91.0 s, with the
+cache filled 32.9-40.8 s against 30.2-34.7 s): each worker compiles or loads the board's
+programs for itself, where separate models are each compiled by the one worker that fits
+them. And the board's rounding can flip a
 near-tie: on the backlash servo (:func:`~sk_offwhite.datasets.make_backlash_servo`, 1000
 samples, 2 folds, ``max_iter=100``) separate models choose the backlash alone (CV RMSE
 0.00106, with friction 0.00112). The board chose the backlash with friction and stiffness
@@ -38,9 +38,9 @@ nothing; a switched model pads its free vector to one size for every switch sett
 (``Model.free_multiple``), so the board compiles one solver program per record layout. The
 README's main job, the compilation cache empty, two workers: the 15 candidates took 15 s
 instead of 45 s, the whole command 192 s instead of 214 s, and its report is the same (the
-RMSEs of ``results.json`` to 12 digits or more). Effects with memory of their own stay on their own
-models (their hidden states would ride along in every fit on the board), as do relaxed laws
-(each changes the board's structure).
+floats of ``results.json`` to 12 digits or more). Effects with memory of their own stay on
+their own models (their hidden states would ride along in every fit on the board), as do
+relaxed laws (each changes the board's structure).
 """
 
 from __future__ import annotations
@@ -128,7 +128,9 @@ def single_effect_models(physics: PhysicsModel, effects) -> list:
     separate = SeparateModels.of(physics, effects)
     if sum(sharing) < 2:
         return [separate] * len(effects)
-    board = Switchboard.of(physics, [e for e in effects if _shares_a_board(e)])
+    board = Switchboard.of(
+        physics, [e for e, shares in zip(effects, sharing, strict=True) if shares]
+    )
     return [board if shares else separate for shares in sharing]
 
 
