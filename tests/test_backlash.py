@@ -209,6 +209,7 @@ def loop_run():
     )
 
 
+@pytest.mark.slow
 def test_the_loop_names_the_backlash_and_recovers_the_play(loop_run):
     data, result = loop_run
     assert [h.equation_index for h in result.hypotheses][:1] == [data.hidden_effect["equation"]]
@@ -219,11 +220,13 @@ def test_the_loop_names_the_backlash_and_recovers_the_play(loop_run):
         assert fitted[name] == pytest.approx(value, rel=0.05), name
 
 
+@pytest.mark.slow
 def test_the_loop_adds_the_backlash_alone(loop_run):
     _, result = loop_run
     assert [type(e) for e in result.effects] == [Backlash]
 
 
+@pytest.mark.slow
 def test_the_loop_cuts_the_validation_error_and_reports_the_hidden_state(loop_run, tmp_path):
     data, result = loop_run
     records = {"estimation": (data.u, data.z), "validation": (data.u_val, data.z_val)}

@@ -51,7 +51,18 @@ def test_every_example_is_listed():
     assert not unlisted, f"add {sorted(unlisted)} to EXAMPLES (with quick arguments) or NOT_RUN"
 
 
-@pytest.mark.parametrize("script", [s for s in EXAMPLES if s in _present()])
+STUDIES = {"vehicle_montecarlo.py"}
+"""Examples run only with ``--run-slow`` (vehicle_certificates.py fits the same vehicle)."""
+
+
+@pytest.mark.parametrize(
+    "script",
+    [
+        pytest.param(s, marks=pytest.mark.slow) if s in STUDIES else s
+        for s in EXAMPLES
+        if s in _present()
+    ],
+)
 def test_example_runs(script, tmp_path):
     args = [a.format(tmp=tmp_path) for a in EXAMPLES[script]]
     result = subprocess.run(

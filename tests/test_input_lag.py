@@ -203,6 +203,7 @@ def test_the_lag_fitted_in_milliseconds_is_the_lag_fitted_in_seconds(drive):
         assert milliseconds[name] == pytest.approx(1e-3 * seconds[name], rel=1e-9)
 
 
+@pytest.mark.slow
 def test_the_loop_names_the_lag_and_recovers_the_motor():
     data = make_lagged_drive(n_samples=400, random_state=0)
     settings = LoopSettings(

@@ -344,6 +344,7 @@ def test_the_delta_path_uses_the_settings_rule_for_gamma(monkeypatch, one_standa
     assert seen["n_gammas"] == settings.n_gammas and len(seen["cv"]) == settings.n_folds
 
 
+@pytest.mark.slow
 def test_shared_programs_find_the_same_leak():
     data = make_leaky_tank(n_samples=400, random_state=1)
     settings = LoopSettings(
@@ -378,6 +379,7 @@ def test_a_tail_no_longer_than_the_init_window_is_refused():
         held_out_splits(LoopSettings(selection="tail", init_window=50), 160)
 
 
+@pytest.mark.slow
 def test_the_tail_score_finds_the_leak():
     """Selection by the held-out last quarter of the record: the leak is added, and every
     CV figure of the trail is that single held-out block's RMSE."""

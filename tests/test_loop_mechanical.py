@@ -23,6 +23,8 @@ from sk_offwhite.datasets import (
 )
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models, write_report
 
+pytestmark = pytest.mark.slow  # minutes per system: skipped unless --run-slow
+
 SETTINGS = LoopSettings(n_folds=2, max_iter=100, fit_delta=False, max_candidates=6)
 HIDDEN_EFFECTS = {"drive": 2}
 """Effects each generator hides (1 if not listed): the drive's friction comes with a

@@ -94,6 +94,7 @@ def _loop(data):
         )
 
 
+@pytest.mark.slow
 def test_the_loop_refines_a_quadratic_calibration_where_the_sensor_is_cubic():
     """The loop proposes a calibration of degree 2; where the sensor's characteristic is
     cubic, the refinement replaces it with degree 3, whose CV RMSE is lower by more than
@@ -263,6 +264,7 @@ def _refined_spring(data, millimetres: bool):
     return kept, cv, dict(rows), fits["stiffness_y_power"].parameters_
 
 
+@pytest.mark.slow
 def test_the_refinement_frees_the_exponent_of_a_spring_that_is_not_cubic_in_any_units():
     """On the oscillator whose spring force goes with the power 2.5 of the deflection, the
     cubic stiffness is exchanged for its richer variant, whose exponent comes back near

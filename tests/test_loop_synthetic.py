@@ -44,7 +44,17 @@ def tanks_in_volts():
     return data, Overflow, result
 
 
-@pytest.fixture(scope="module", params=sorted(SYSTEMS))
+STUDIES = {"actuator", "tanks"}
+"""Systems whose loops run only with ``--run-slow`` (the friction oscillator's stands for
+the family in the default run; the Cascaded Tanks' main job is run by test_examples)."""
+
+
+@pytest.fixture(
+    scope="module",
+    params=[
+        pytest.param(s, marks=pytest.mark.slow) if s in STUDIES else s for s in sorted(SYSTEMS)
+    ],
+)
 def run(request):
     if request.param == "tanks":
         return request.getfixturevalue("tanks_in_volts")
@@ -103,6 +113,7 @@ def _in_other_units(physics, scale: float):
     return physics.with_parameters(**updates), factors
 
 
+@pytest.mark.slow
 def test_the_tanks_overflow_is_the_same_in_kilovolts(tanks_in_volts):
     """Levels in kV instead of V: the overflow's corner follows the data's scale, so the
     loop adds the same effect with the same values in the new units. (With a corner fixed

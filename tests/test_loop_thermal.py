@@ -60,6 +60,7 @@ def test_validation_error_falls_to_the_sensor_noise(run):
     assert result.chosen == "final"
 
 
+@pytest.mark.slow
 def test_the_same_model_in_other_units(run):
     """Degrees Celsius (an offset of the output) and kilowatts (a scale of the input and of
     two parameters), both at once (one loop, not two: each alone was its own 50 s loop):

@@ -78,6 +78,7 @@ def coupling():
     return _looped(make_clearance_coupling)
 
 
+@pytest.mark.slow
 def test_a_clearance_is_told_apart_from_a_play_and_a_diode(coupling):
     data, result = coupling
     assert [e.name for e in result.effects] == ["dead_zone_u_theta"], result.effects

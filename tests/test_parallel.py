@@ -93,6 +93,7 @@ def test_the_path_with_worker_folds_is_the_path_in_one_process(tank):
     assert one.best_index == two.best_index
 
 
+@pytest.mark.slow
 def test_the_loop_with_workers_chooses_and_scores_as_in_one_process(tank):
     def loop(n_jobs, share_programs):
         settings = LoopSettings(

@@ -84,6 +84,7 @@ def test_the_switchboard_applies_relaxed_laws_without_a_switch():
     assert board.model([overflow]).parameters["a"].fixed
 
 
+@pytest.mark.slow
 def test_the_loop_frees_a_declared_law_the_data_reject(tank_data):
     """The only thing wrong with the declared tank is Torricelli's exponent."""
     import pysindy as ps

@@ -101,6 +101,7 @@ def test_a_zero_calibration_is_the_declared_output():
     assert float(model.output(x, jnp.array([1.0]), theta)[0]) == 5.0
 
 
+@pytest.mark.slow
 def test_the_loop_names_and_fits_an_uncalibrated_sensor():
     """The hidden effect is in the output map: the loop adds the calibration, the
     validation error falls by more than half, the outlet coefficient and the sensor's

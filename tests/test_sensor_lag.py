@@ -200,6 +200,7 @@ def test_the_sensor_lag_fitted_in_milliseconds_is_the_lag_fitted_in_seconds(tank
     assert milliseconds["k"] == pytest.approx(1e-3 * seconds["k"], rel=1e-6)
 
 
+@pytest.mark.slow
 def test_the_loop_names_the_slow_sensor_not_the_pump_and_recovers_the_tank():
     data = make_slow_sensor_tank(n_samples=400, random_state=0)
     # every candidate: the pump's hypothesis alone proposes six mechanisms before it

@@ -123,6 +123,7 @@ def stepped_loop():
     return data, result
 
 
+@pytest.mark.slow
 def test_the_loop_adds_the_step_alone(stepped_loop):
     """The jumps name the step; the loop adds it and nothing else, with its level and
     height within 5 %, and the validation error falls by more than half."""
