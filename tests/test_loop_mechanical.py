@@ -5,8 +5,9 @@ offset, a cubic stiffness, a quadratic drag, an input dead zone). The loop must 
 (equation, variables and sign), add an effect of the right kind whose parameter matches the
 truth within 5 %, recover the declared parameters within 5 %, cut the validation error by
 at least half, and choose a final model no worse under CV than the declared physics.
-Records are short and the sparse-δ fits are skipped (``fit_delta=False``) to keep the file
-to a few minutes.
+Records are short and the sparse-δ fits are skipped (``fit_delta=False``); the four loops
+still take minutes, so the module runs with ``--run-slow`` only (the friction oscillator's
+loop in tests/test_loop_synthetic.py stands for mechanics in the default run).
 """
 
 from dataclasses import replace
@@ -23,7 +24,7 @@ from sk_offwhite.datasets import (
 )
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models, write_report
 
-pytestmark = pytest.mark.slow  # minutes per system: skipped unless --run-slow
+pytestmark = pytest.mark.slow
 
 SETTINGS = LoopSettings(n_folds=2, max_iter=100, fit_delta=False, max_candidates=6)
 HIDDEN_EFFECTS = {"drive": 2}
