@@ -166,8 +166,12 @@ def model_output(model: Model, params: dict, x, u, theta: dict):
     return declared + output_correction(model, params, x, u, declared.shape[0])
 
 
+@partial(jax.jit, static_argnums=0)
 def simulate(model: Model, params: dict, x0, u):
     r"""Free-run simulation from ``x0`` over the input sequence ``u`` of shape ``(L, n_u)``.
+
+    Jitted, so that a program calling it several times (a solver's residual, its
+    Jacobian's push-forward and its trial step) traces the model once per shape.
 
     Returns
     -------
