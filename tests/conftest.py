@@ -47,6 +47,11 @@ to 44 s of a worker's time on a 2-core machine; the first holds only studies).""
 STUDY_REASON = "a study of the whole loop on one system (minutes): run with --run-slow"
 
 
+def marking_studies(values, studies) -> list:
+    """``values`` as the parameters of a test, those in ``studies`` marked ``slow``."""
+    return [pytest.param(v, marks=pytest.mark.slow) if v in studies else v for v in values]
+
+
 def pytest_addoption(parser):
     parser.addoption(
         "--run-slow",

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import marking_studies
 
 from sk_offwhite.datasets._cascaded_tanks import cascaded_tanks_rhs
 
@@ -56,12 +57,7 @@ STUDIES = {"vehicle_montecarlo.py"}
 
 
 @pytest.mark.parametrize(
-    "script",
-    [
-        pytest.param(s, marks=pytest.mark.slow) if s in STUDIES else s
-        for s in EXAMPLES
-        if s in _present()
-    ],
+    "script", marking_studies([s for s in EXAMPLES if s in _present()], STUDIES)
 )
 def test_example_runs(script, tmp_path):
     args = [a.format(tmp=tmp_path) for a in EXAMPLES[script]]

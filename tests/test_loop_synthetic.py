@@ -8,6 +8,7 @@ grids small (one γ, two folds) to keep the file to a few minutes on two cores.
 
 import numpy as np
 import pytest
+from conftest import marking_studies
 
 from sk_offwhite import Friction, InputSaturation, Overflow, Parameter
 from sk_offwhite.datasets import (
@@ -49,12 +50,7 @@ STUDIES = {"actuator", "tanks"}
 the family in the default run; the Cascaded Tanks' main job is run by test_examples)."""
 
 
-@pytest.fixture(
-    scope="module",
-    params=[
-        pytest.param(s, marks=pytest.mark.slow) if s in STUDIES else s for s in sorted(SYSTEMS)
-    ],
-)
+@pytest.fixture(scope="module", params=marking_studies(sorted(SYSTEMS), STUDIES))
 def run(request):
     if request.param == "tanks":
         return request.getfixturevalue("tanks_in_volts")
