@@ -25,6 +25,9 @@ prints (and writes ``bench_speed.md`` / ``.json`` in ``--out``, default
   chose, all after a warm-up (and the first path cold); and the work each does, whatever
   the compilation: the Levenberg-Marquardt runs and iterations of the path and of the one
   fit (in one process), and how many runs ended at ``max_iter``.
+* **batched against sequential** — the path's 8 γ as one ``vmap``-ped solver run against
+  the same 8 runs in turn, from one start (compilation excluded): whether batching what
+  has the same shape pays on this machine.
 * **memory** — resident set size over 100 fits in one process (growth per fit).
 * **main job** (``--main-job``) — the README's closed loop on the Cascaded Tanks in a
   fresh process, split into XLA compilation, tracing, lowering and the rest
@@ -345,6 +348,96 @@ def grid_against_one() -> dict:
     return out
 
 
+def batched_against_sequential(repeats: int = 3) -> dict:
+    """The support path's 8 γ as one ``vmap``-ped Levenberg-Marquardt run (one program, the
+    runs stepping together until the last stops) against the same 8 runs one after the
+    other, each from the same start: that of the path's longest penalised run (most
+    passes; a run started where every term is zero barely moves them, whatever its γ),
+    its γ replaced by each of the path's. Seconds are the fastest
+    of ``repeats`` after a first call (compilation excluded); ``max_free_difference`` is the
+    largest difference between the two ways' solutions."""
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+    import pysindy as ps
+    from sklearn.model_selection import KFold
+
+    from sk_offwhite import GreyBoxSparseRegressor, fit_gamma_path
+    from sk_offwhite.datasets import cascaded_tanks_physics
+
+    u, z = _tanks_record()
+    est = GreyBoxSparseRegressor(
+        cascaded_tanks_physics(fixed={"k4": K4}), library=ps.PolynomialLibrary(), gamma=1e-2
+    )
+    with warnings.catch_warnings(), _captured_solver_calls() as calls:
+        warnings.simplefilter("ignore")
+        path = fit_gamma_path(est, u, z, n_gammas=8, cv=KFold(3))
+    penalised = [c for c in calls if float(c[0][1].weights.gamma) > 0]
+    args, options, _ = max(penalised, key=lambda call: call[2].n_iter)
+    with jax.enable_x64(True):
+        run_at, start = _device_run(*args, **options)
+        gammas = jnp.asarray(path.gammas)
+        batched = jax.jit(jax.vmap(run_at, in_axes=(0, None)))
+
+        def in_turn():
+            return [jax.device_get(run_at(gamma, start)) for gamma in gammas]
+
+        sequential = _timed(in_turn, repeats)
+        together = _timed(lambda: batched(gammas, start), repeats)
+        one_by_one, all_at_once = in_turn(), jax.device_get(batched(gammas, start))
+    difference = max(
+        float(np.max(np.abs(np.asarray(all_at_once.state.free[k]) - run.state.free)))
+        for k, run in enumerate(one_by_one)
+    )
+    return {
+        "sequential_s": min(sequential),
+        "batched_s": min(together),
+        "batched_ratio": min(together) / min(sequential),
+        "passes_sequential": [int(run.passes) for run in one_by_one],
+        "passes_batched": [int(p) for p in all_at_once.passes],
+        "max_free_difference": difference,
+    }
+
+
+def _device_run(free0, problem, model, layout, *, max_iter, tol, scaling, **_):
+    """``(run_at, start)``: the whole device run of
+    :func:`~sk_offwhite._lm_device.levenberg_marquardt_on_device`'s arguments as a function
+    of γ and its start carry, prepared as that function prepares it."""
+    from sk_offwhite import _lm_device as device
+
+    forward = device.forward_mode(free0, problem, model, layout)
+    size = device.padded_size(free0.shape[0], model.free_multiple)
+    free0, problem = device._padded(free0, problem, layout.size, size)
+    omega_shape = dict(layout.blocks).get("omega", (0,))
+    start = device._start(free0, omega_shape, int(max_iter))
+    static = dict(model=model, layout=layout, forward=forward, per_variable=scaling != "global")
+
+    def run_at(gamma, start):
+        weighted = problem._replace(weights=problem.weights._replace(gamma=gamma))
+        return device._run_on_device(start, weighted, tol, **static)
+
+    return run_at, start
+
+
+@contextlib.contextmanager
+def _captured_solver_calls():
+    """The Levenberg-Marquardt runs made in this process inside the block: a list of their
+    ``(args, kwargs, SolverResult)``."""
+    from sk_offwhite import _problem
+
+    solver, calls = _problem.levenberg_marquardt_on_device, []
+
+    def captured(*args, **kwargs):
+        calls.append((args, kwargs, solver(*args, **kwargs)))
+        return calls[-1][2]
+
+    _problem.levenberg_marquardt_on_device = captured
+    try:
+        yield calls
+    finally:
+        _problem.levenberg_marquardt_on_device = solver
+
+
 @contextlib.contextmanager
 def _counted_solver_runs():
     """The Levenberg-Marquardt runs made in this process inside the block (the package's
@@ -486,7 +579,7 @@ def _markdown(results: dict) -> str:
         for r in results.get("per_step", [])
     ]
     lines += ["", "## Other", "", "```", json.dumps(
-        {k: results[k] for k in ("grid", "memory", "main_job") if k in results}, indent=2
+        {k: results[k] for k in ("grid", "batched", "memory", "main_job") if k in results}, indent=2
     ), "```"]  # fmt: skip
     return "\n".join(lines) + "\n"
 
@@ -525,7 +618,7 @@ def main(argv=None):
     }
     if not args.only_fit:
         results |= {"per_step": per_step(args.repeats), "grid": grid_against_one(),
-                    "memory": memory()}  # fmt: skip
+                    "batched": batched_against_sequential(), "memory": memory()}  # fmt: skip
     if args.main_job:
         results["main_job"] = main_job(out, args.fused_loops)
     results["peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
