@@ -28,6 +28,8 @@ prints (and writes ``bench_speed.md`` / ``.json`` in ``--out``, default
 * **batched against sequential** — the path's 8 γ as one ``vmap``-ped solver run against
   the same 8 runs in turn, from one start (compilation excluded): whether batching what
   has the same shape pays on this machine.
+* **creeping runs** — the path's first unpenalised runs that ended at ``max_iter``, run
+  again with 2000 iterations and by scipy's ``least_squares`` from the same start.
 * **memory** — resident set size over 100 fits in one process (growth per fit).
 * **main job** (``--main-job``) — the README's closed loop on the Cascaded Tanks in a
   fresh process, split into XLA compilation, tracing, lowering and the rest
@@ -51,6 +53,7 @@ import subprocess
 import sys
 import time
 import warnings
+from functools import partial
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -313,16 +316,11 @@ def grid_against_one() -> dict:
     :data:`WARM_PATHS`); and
     ``GridSearchCV`` over the path's 8 γ (3 folds, one process), warm, with the traces and
     compilations it makes (``jax.monitoring``)."""
-    import pysindy as ps
     from sklearn.model_selection import KFold
 
-    from sk_offwhite import GreyBoxSparseRegressor, fit_gamma_path
-    from sk_offwhite.datasets import cascaded_tanks_physics
+    from sk_offwhite import fit_gamma_path
 
-    u, z = _tanks_record()
-    est = GreyBoxSparseRegressor(
-        cascaded_tanks_physics(fixed={"k4": K4}), library=ps.PolynomialLibrary(), gamma=1e-2
-    )
+    est, u, z = _path_estimator()
     out = {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -359,19 +357,8 @@ def batched_against_sequential(repeats: int = 3) -> dict:
     import jax
     import jax.numpy as jnp
     import numpy as np
-    import pysindy as ps
-    from sklearn.model_selection import KFold
 
-    from sk_offwhite import GreyBoxSparseRegressor, fit_gamma_path
-    from sk_offwhite.datasets import cascaded_tanks_physics
-
-    u, z = _tanks_record()
-    est = GreyBoxSparseRegressor(
-        cascaded_tanks_physics(fixed={"k4": K4}), library=ps.PolynomialLibrary(), gamma=1e-2
-    )
-    with warnings.catch_warnings(), _captured_solver_calls() as calls:
-        warnings.simplefilter("ignore")
-        path = fit_gamma_path(est, u, z, n_gammas=8, cv=KFold(3))
+    path, calls = _path_solver_calls()
     penalised = [c for c in calls if float(c[0][1].weights.gamma) > 0]
     args, options, _ = max(penalised, key=lambda call: call[2].n_iter)
     with jax.enable_x64(True):
@@ -397,6 +384,91 @@ def batched_against_sequential(repeats: int = 3) -> dict:
         "passes_batched": [int(p) for p in all_at_once.passes],
         "max_free_difference": difference,
     }
+
+
+CREEP_RUNS, CREEP_MAX_ITER = 3, 2000
+"""How many of the path's unpenalised runs that ended at ``max_iter`` are run again, and
+how far (:func:`creeping_runs`)."""
+
+
+def creeping_runs() -> dict:
+    """The first :data:`CREEP_RUNS` runs of the support path that ended at ``max_iter``
+    without a penalty (the refits on a support), run again from their start with
+    :data:`CREEP_MAX_ITER` iterations, and by scipy's ``least_squares`` (trust region,
+    ``x_scale='jac'``, the package's residuals and forward-mode Jacobian, every tolerance
+    1e-15): whether their length belongs to the problem or to this solver."""
+    import jax
+
+    from sk_offwhite._lm_device import levenberg_marquardt_on_device
+
+    _, calls = _path_solver_calls()
+    unfinished = [
+        c for c in calls
+        if float(c[0][1].weights.gamma) == 0 and c[2].message.startswith("max_iter")
+    ][:CREEP_RUNS]  # fmt: skip
+    rows = []
+    with jax.enable_x64(True):
+        for (free0, problem, model, layout), options, result in unfinished:
+            longer = levenberg_marquardt_on_device(
+                free0, problem, model, layout, **(options | {"max_iter": CREEP_MAX_ITER})
+            )
+            trust = _trust_region(free0, problem, model, layout)
+            rows.append({
+                "iterations": result.n_iter, "cost": result.cost,
+                "longer_iterations": longer.n_iter, "longer_cost": longer.cost,
+                "longer_message": longer.message.split(" (")[0],
+                "scipy_evaluations": int(trust.nfev), "scipy_cost": 2.0 * float(trust.cost),
+            })  # fmt: skip
+    return {"runs": rows}
+
+
+def _trust_region(free0, problem, model, layout):
+    """scipy's ``least_squares`` on the package's residuals from ``free0`` (forward-mode
+    Jacobian, ``x_scale='jac'``, every tolerance 1e-15, :data:`CREEP_MAX_ITER`
+    evaluations at most)."""
+    import jax
+    import numpy as np
+    from scipy.optimize import least_squares
+
+    from sk_offwhite._optim import free_residuals
+
+    residual = jax.jit(partial(free_residuals, problem=problem, model=model, layout=layout))
+    jacobian = jax.jit(jax.jacfwd(residual))
+    return least_squares(
+        lambda free: np.asarray(residual(free)), np.asarray(free0),
+        jac=lambda free: np.asarray(jacobian(free)),
+        bounds=(np.asarray(problem.lower), np.asarray(problem.upper)),
+        x_scale="jac", ftol=1e-15, xtol=1e-15, gtol=1e-15, max_nfev=CREEP_MAX_ITER,
+    )  # fmt: skip
+
+
+def _path_estimator():
+    """The Cascaded Tanks' estimator of :func:`grid_against_one` (physics, ``k4`` fixed, and
+    the polynomial library) and its estimation record ``(est, u, z)``."""
+    import pysindy as ps
+
+    from sk_offwhite import GreyBoxSparseRegressor
+    from sk_offwhite.datasets import cascaded_tanks_physics
+
+    u, z = _tanks_record()
+    est = GreyBoxSparseRegressor(
+        cascaded_tanks_physics(fixed={"k4": K4}), library=ps.PolynomialLibrary(), gamma=1e-2
+    )
+    return est, u, z
+
+
+def _path_solver_calls():
+    """``fit_gamma_path`` over 8 γ (3 contiguous folds) and its solver runs, as
+    :func:`_captured_solver_calls` lists them: ``(path, calls)``."""
+    from sklearn.model_selection import KFold
+
+    from sk_offwhite import fit_gamma_path
+
+    est, u, z = _path_estimator()
+    with warnings.catch_warnings(), _captured_solver_calls() as calls:
+        warnings.simplefilter("ignore")
+        path = fit_gamma_path(est, u, z, n_gammas=8, cv=KFold(3))
+    return path, calls
 
 
 def _device_run(free0, problem, model, layout, *, max_iter, tol, scaling, **_):
@@ -578,8 +650,9 @@ def _markdown(results: dict) -> str:
         f"{r['us_per_step_min']:.3f} | {r['us_per_step_median']:.3f} |"
         for r in results.get("per_step", [])
     ]
+    other = ("grid", "batched", "creeping", "memory", "main_job")
     lines += ["", "## Other", "", "```", json.dumps(
-        {k: results[k] for k in ("grid", "batched", "memory", "main_job") if k in results}, indent=2
+        {k: results[k] for k in other if k in results}, indent=2
     ), "```"]  # fmt: skip
     return "\n".join(lines) + "\n"
 
@@ -618,7 +691,8 @@ def main(argv=None):
     }
     if not args.only_fit:
         results |= {"per_step": per_step(args.repeats), "grid": grid_against_one(),
-                    "batched": batched_against_sequential(), "memory": memory()}  # fmt: skip
+                    "batched": batched_against_sequential(), "creeping": creeping_runs(),
+                    "memory": memory()}  # fmt: skip
     if args.main_job:
         results["main_job"] = main_job(out, args.fused_loops)
     results["peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
