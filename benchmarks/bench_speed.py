@@ -315,6 +315,7 @@ are compared with (a single one measured 0.22 and 0.34 s in two runs)."""
 
 
 def _seconds(function) -> float:
+    """Wall-clock seconds of ``function()``."""
     start = time.perf_counter()
     function()
     return time.perf_counter() - start
@@ -360,9 +361,9 @@ def batched_against_sequential(repeats: int = 3) -> dict:
     runs stepping together until the last stops) against the same 8 runs one after the
     other, each from the same start: that of the path's longest penalised run (most
     passes; a run started where every term is zero barely moves them, whatever its γ),
-    its γ replaced by each of the path's. Seconds are the fastest
-    of ``repeats`` after a first call (compilation excluded); ``max_free_difference`` is the
-    largest difference between the two ways' solutions."""
+    its γ replaced by each of the path's. Seconds are the fastest of ``repeats`` after a
+    first call (compilation excluded); ``max_free_difference`` is the largest difference
+    between the two ways' solutions."""
     import jax
     import jax.numpy as jnp
     import numpy as np
