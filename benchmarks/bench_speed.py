@@ -33,7 +33,9 @@ prints (and writes ``bench_speed.md`` / ``.json`` in ``--out``, default
 * **memory** — resident set size over 100 fits in one process (growth per fit).
 * **main job** (``--main-job``) — the README's closed loop on the Cascaded Tanks in a
   fresh process, split into XLA compilation, tracing, lowering and the rest
-  (``jax.monitoring``), and its peak RSS, without the on-disk compilation cache.
+  (``jax.monitoring``), and its peak RSS, without the on-disk compilation cache; and the
+  README's command as a user runs it (two workers, the cache on), with a cache of its own
+  empty and then filled: wall time, the report's time and the peak RSS.
 
 Everything runs with XLA's default for loops on CPU unless ``--fused-loops`` is given, which
 calls :func:`sk_offwhite.enable_fused_loops` first (inherited by every process the script
@@ -616,6 +618,51 @@ def main_job(out: Path, fused_loops: bool) -> dict:
     return timings
 
 
+README_COMMAND = """
+import json, resource, runpy, sys
+from joblib.externals.loky import get_reusable_executor
+sys.argv = {argv!r}
+runpy.run_path(sys.argv[0], run_name="__main__")
+get_reusable_executor().shutdown(wait=True)  # the workers reaped: their RSS counts below
+print(json.dumps([resource.getrusage(who).ru_maxrss / 1024
+                  for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN)]))
+"""
+
+
+def readme_command(out: Path, fused_loops: bool) -> dict:
+    """The README's command as a user runs it (two worker processes, the compilation cache
+    on), twice in fresh processes with a cache of its own: empty, then filled. Wall time of
+    each command, the report's time of the loop and scoring, and the peak RSS of the
+    largest process (the command's own or a worker's)."""
+    import tempfile
+
+    script = str(HERE.parent / "examples" / "cascaded_tanks_loop.py")
+    flags = [] if fused_loops else ["--no-fused-loops"]
+    code = README_COMMAND.format(argv=[script, "--out", str(out / "readme_command"), *flags])
+    runs = {}
+    with tempfile.TemporaryDirectory() as cache:
+        environment = os.environ | {"SK_OFFWHITE_CACHE": cache}
+        for name in ("cache_empty", "cache_filled"):
+            start = time.perf_counter()
+            result = subprocess.run(
+                [sys.executable, "-W", "ignore", "-c", code],
+                capture_output=True, text=True, check=True, env=environment,
+            )  # fmt: skip
+            lines = result.stdout.strip().splitlines()
+            runs[name] = {
+                "wall_s": time.perf_counter() - start,
+                "loop_and_scoring_s": _report_seconds(lines),
+                "peak_rss_mib": max(json.loads(lines[-1])),
+            }
+    return runs
+
+
+def _report_seconds(lines: list[str]) -> float:
+    """The loop's and scoring's seconds the example prints after its report's path."""
+    line = next(text for text in lines if text.startswith("report:"))
+    return float(line.rsplit("(", 1)[1].split()[0])
+
+
 def _markdown(results: dict) -> str:
     loops = "fused (enable_fused_loops)" if results["fused_loops"] else "XLA's default"
     lines = [f"Machine: {results['machine']}; loops on CPU: {loops}", ""]
@@ -643,7 +690,7 @@ def _markdown(results: dict) -> str:
         f"{r['us_per_step_min']:.3f} | {r['us_per_step_median']:.3f} |"
         for r in results.get("per_step", [])
     ]
-    other = ("grid", "batched", "creeping", "memory", "main_job")
+    other = ("grid", "batched", "creeping", "memory", "main_job", "readme_command")
     lines += ["", "## Other", "", "```", json.dumps(
         {k: results[k] for k in other if k in results}, indent=2
     ), "```"]  # fmt: skip
@@ -688,6 +735,7 @@ def main(argv=None):
                     "memory": memory()}  # fmt: skip
     if args.main_job:
         results["main_job"] = main_job(out, args.fused_loops)
+        results["readme_command"] = readme_command(out, args.fused_loops)
     results["peak_rss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     text = _markdown(results)
     print(text)
