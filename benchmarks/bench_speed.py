@@ -316,13 +316,6 @@ WARM_FITS = 5
 are compared with (a single one measured 0.22 and 0.34 s in two runs)."""
 
 
-def _seconds(function) -> float:
-    """Wall-clock seconds of ``function()``."""
-    start = time.perf_counter()
-    function()
-    return time.perf_counter() - start
-
-
 def grid_against_one() -> dict:
     """``fit_gamma_path`` over 8 γ (3 folds) against one fit at the γ it chose (the
     estimator is left there; the fastest of :data:`WARM_FITS`), in one process and with the
@@ -346,7 +339,7 @@ def grid_against_one() -> dict:
                 seconds.append(time.perf_counter() - start)
             out[f"path{suffix}_cold"], out[f"path{suffix}_warm"] = seconds[0], min(seconds[1:])
         out |= _grid_search(est, path.gammas, u, z)
-        out["one_fit_warm"] = min(_seconds(lambda: est.fit(u, z)) for _ in range(WARM_FITS))
+        out["one_fit_warm"] = min(_timed(lambda: est.fit(u, z), WARM_FITS))
         with _captured_solver_calls() as calls:
             fit_gamma_path(est, u, z, n_gammas=8, cv=KFold(3))
         out |= _iteration_counts("path", calls)
@@ -358,19 +351,19 @@ def grid_against_one() -> dict:
     return out
 
 
-def batched_against_sequential(repeats: int = 3) -> dict:
+def batched_against_sequential(path_calls, repeats: int = 3) -> dict:
     """The support path's 8 γ as one ``vmap``-ped Levenberg-Marquardt run (one program, the
     runs stepping together until the last stops) against the same 8 runs one after the
     other, each from the same start: that of the path's longest penalised run (most
     passes; a run started where every term is zero barely moves them, whatever its γ),
     its γ replaced by each of the path's. Seconds are the fastest of ``repeats`` after a
     first call (compilation excluded); ``max_free_difference`` is the largest difference
-    between the two ways' solutions."""
+    between the two ways' solutions. ``path_calls``: :func:`_path_solver_calls`'s."""
     import jax
     import jax.numpy as jnp
     import numpy as np
 
-    path, calls = _path_solver_calls()
+    path, calls = path_calls
     penalised = [c for c in calls if float(c[0][1].weights.gamma) > 0]
     args, options, _ = max(penalised, key=lambda call: call[2].n_iter)
     with jax.enable_x64(True):
@@ -403,17 +396,18 @@ CREEP_RUNS, CREEP_MAX_ITER = 3, 2000
 how far (:func:`creeping_runs`)."""
 
 
-def creeping_runs() -> dict:
+def creeping_runs(path_calls) -> dict:
     """The first :data:`CREEP_RUNS` runs of the support path that ended at ``max_iter``
     without a penalty (the refits on a support), run again from their start with
     :data:`CREEP_MAX_ITER` iterations, and by scipy's ``least_squares`` (trust region,
     ``x_scale='jac'``, the package's residuals and forward-mode Jacobian, every tolerance
-    1e-15): whether their length belongs to the problem or to this solver."""
+    1e-15): whether their length belongs to the problem or to this solver.
+    ``path_calls``: :func:`_path_solver_calls`'s."""
     import jax
 
     from sk_offwhite._lm_device import levenberg_marquardt_on_device
 
-    _, calls = _path_solver_calls()
+    _, calls = path_calls
     unfinished = [
         c for c in calls
         if float(c[0][1].weights.gamma) == 0 and c[2].message.startswith("max_iter")
@@ -486,15 +480,10 @@ def _path_solver_calls():
 def _device_run(free0, problem, model, layout, *, max_iter, tol, scaling, **_):
     """``(run_at, start)``: the whole device run of
     :func:`~sk_offwhite._lm_device.levenberg_marquardt_on_device`'s arguments as a function
-    of γ and its start carry, prepared as that function prepares it."""
+    of γ and its start carry (:func:`~sk_offwhite._lm_device.device_run`)."""
     from sk_offwhite import _lm_device as device
 
-    forward = device.forward_mode(free0, problem, model, layout)
-    size = device.padded_size(free0.shape[0], model.free_multiple)
-    free0, problem = device._padded(free0, problem, layout.size, size)
-    omega_shape = dict(layout.blocks).get("omega", (0,))
-    start = device._start(free0, omega_shape, int(max_iter))
-    static = dict(model=model, layout=layout, forward=forward, per_variable=scaling != "global")
+    start, problem, static = device.device_run(free0, problem, model, layout, max_iter, scaling)
 
     def run_at(gamma, start):
         weighted = problem._replace(weights=problem.weights._replace(gamma=gamma))
@@ -730,9 +719,10 @@ def main(argv=None):
         "fit": cold_and_warm(args.rounds, args.jax_sysid_python),
     }
     if not args.only_fit:
+        path_calls = _path_solver_calls()
         results |= {"per_step": per_step(args.repeats), "grid": grid_against_one(),
-                    "batched": batched_against_sequential(), "creeping": creeping_runs(),
-                    "memory": memory()}  # fmt: skip
+                    "batched": batched_against_sequential(path_calls),
+                    "creeping": creeping_runs(path_calls), "memory": memory()}  # fmt: skip
     if args.main_job:
         results["main_job"] = main_job(out, args.fused_loops)
         results["readme_command"] = readme_command(out, args.fused_loops)

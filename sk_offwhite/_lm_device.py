@@ -180,6 +180,20 @@ def _padded(free0, problem: Problem, n_entries: int, size: int):
     return grown(free0, 0.0), padded
 
 
+def device_run(free0, problem: Problem, model: Model, layout: Layout, max_iter, scaling):
+    """What :func:`_run_on_device` takes for a run from ``free0``: ``(start, problem,
+    static)``, the start carry (:func:`_start`), the problem with its free vector padded
+    (:func:`_padded`) and the static arguments."""
+    forward = forward_mode(free0, problem, model, layout)
+    omega_shape = dict(layout.blocks).get("omega", (0,))
+    size = padded_size(np.shape(free0)[0], model.free_multiple)
+    free0, problem = _padded(free0, problem, layout.size, size)
+    start = _start(free0, omega_shape, int(max_iter))
+    per_variable = checked_scaling(scaling) == "per-variable"
+    static = dict(model=model, layout=layout, forward=forward, per_variable=per_variable)
+    return start, problem, static
+
+
 def levenberg_marquardt_on_device(
     free0,
     problem: Problem,
@@ -198,16 +212,9 @@ def levenberg_marquardt_on_device(
     if verbose:
         options = dict(max_iter=max_iter, tol=tol, verbose=verbose, scaling=scaling)
         return levenberg_marquardt(free0, problem, model, layout, **options)
-    forward = forward_mode(free0, problem, model, layout)
-    omega_shape = dict(layout.blocks).get("omega", (0,))
+    start, problem, static = device_run(free0, problem, model, layout, max_iter, scaling)
+    run = jax.device_get(_run_on_device(start, problem, tol, **static))
     n_free = np.shape(free0)[0]
-    size = padded_size(n_free, model.free_multiple)
-    free0, problem = _padded(free0, problem, layout.size, size)
-    start = _start(free0, omega_shape, int(max_iter))
-    per_variable = checked_scaling(scaling) == "per-variable"
-    static = dict(model=model, layout=layout, forward=forward, per_variable=per_variable)
-    run = _run_on_device(start, problem, tol, **static)
-    run = jax.device_get(run)
     history = np.asarray(run.history[: int(run.n_accepted) + 1])
     outcome = int(run.outcome)
     message = OUTCOMES[outcome] + ("" if outcome else _creep(history))
