@@ -490,18 +490,14 @@ def fit_gamma_path(
     u_arr, z_arr = np.asarray(u, float), np.asarray(z, float)
     if gammas is not None and np.any(np.diff(_check_gammas(gammas)) >= 0):
         min_improvement = 0.0  # the early end compares each gamma with a larger one
-    if gammas is None:
-        estimator._fit(u_arr, z_arr, sample_index, reference_only=True)
-        values, gamma_max = gamma_grid(estimator.gamma_max_, n_gammas, eps), estimator.gamma_max_
-    else:
-        values, gamma_max = _check_gammas(gammas), np.nan
-    cv_error = cv_rmse = jobs = folds = None
+    values, gamma_max = _grid(estimator, u_arr, z_arr, gammas, (n_gammas, eps), sample_index)
+    jobs = folds = None
     if cv is not None:
-        template, window = clone(estimator), _init_window(estimator, init_window, len(u_arr))
-        splits = _splits(cv, len(u_arr))
+        window = _init_window(estimator, init_window, len(u_arr))
         shared = (values, window, min_improvement, stop_at_divergence)
         arguments = [
-            (clone(template), u_arr, z_arr, train, test, *shared) for train, test in splits
+            (clone(estimator), u_arr, z_arr, train, test, *shared)
+            for train, test in _splits(cv, len(u_arr))
         ]
         if effective_n_jobs(n_jobs) == 1:
             folds = _folds_together(arguments, stop_at_divergence)
@@ -518,11 +514,8 @@ def fit_gamma_path(
     if jobs is not None:
         folds = np.stack(gather(jobs))
         folds = _cut_at_divergence(folds) if stop_at_divergence else folds
-    if folds is not None:
-        cv_error, cv_rmse = np.moveaxis(folds, (2, 0), (0, 2))[:, : len(values)]
     failed = np.array([snap is None for snap in snapshots])
-    if cv_error is not None:
-        cv_error[failed], cv_rmse[failed] = np.inf, np.inf
+    cv_error, cv_rmse = (None, None) if folds is None else _fold_scores(folds, failed)
     best = None
     if cv_error is not None:
         best = _choose(cv_error, values, one_standard_error, stop_at_divergence)
@@ -551,6 +544,25 @@ def fit_gamma_path(
         cv_rmse,
         start,
     )
+
+
+def _grid(estimator, u, z, gammas, default, sample_index) -> tuple[np.ndarray, float]:
+    """``(grid, gamma_max)``: ``gammas`` checked (``gamma_max`` nan), or, for ``None``, the
+    :func:`gamma_grid` of ``default = (n_gammas, eps)`` below the record's
+    :math:`\\gamma_{max}` (the physics-only fit's, which is computed for it)."""
+    if gammas is not None:
+        return _check_gammas(gammas), np.nan
+    estimator._fit(u, z, sample_index, reference_only=True)
+    return gamma_grid(estimator.gamma_max_, *default), estimator.gamma_max_
+
+
+def _fold_scores(folds: np.ndarray, failed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(cv_error, cv_rmse)`` of shape ``(n_gammas, n_folds)`` from the folds' errors
+    (:func:`_folds_together`'s shape, cut to the whole record's ``len(failed)`` γ):
+    ``inf`` at the γ whose fit on the whole record ``failed``."""
+    cv_error, cv_rmse = np.moveaxis(folds, (2, 0), (0, 2))[:, : len(failed)]
+    cv_error[failed], cv_rmse[failed] = np.inf, np.inf
+    return cv_error, cv_rmse
 
 
 def _init_window(estimator, init_window, n_samples: int) -> int:

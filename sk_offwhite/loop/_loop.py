@@ -1352,9 +1352,7 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
     with _stage(clock, "declared physics", settings):
         baseline, start, run, declared_cv, reset = _fit_declared(physics, u, z, settings)
         notes += _reset_notes(reset, physics)
-        output_names = _output_names(physics, z.shape[1])
-        facts = range_violations(z, run.outputs, output_names)
-        facts += output_jumps(z, run.outputs, output_names)
+        facts = _record_facts(physics, z, run)
     with _stage(clock, "evidence", settings):
         evidence, hypotheses = _read_evidence(start, library, u, z, settings, failures)
         snapshot = copy.copy(evidence)  # the physics-only fit, kept when the path refits it
@@ -1371,22 +1369,62 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
             )
     with _stage(clock, "effect selection", settings):
         candidates = _candidates(start, library, hypotheses, facts, run, u, z, settings)
-        effects, trail, singles, warm, set_fits = _select_effects(
+        selection = _select_effects(
             start, candidates, u, z, settings, _rmse(run.outputs, z), failures, declared_cv
         )
+        effects, trail, singles, _, set_fits = selection
         notes += _equivalents(effects, singles, settings.tolerance)
     with _stage(clock, MODEL_LABELS["final"], settings):
-        augmented = augment(start, *effects).with_parameters(**warm)
-        final = _final_fit(augmented, effects, set_fits, u, z, settings, failures) or baseline
-        final_cv = dict(trail).get(_label(effects), declared_cv)
-        if effects and final is not baseline:  # the note gives the CV RMSE free and held
-            augmented, final, cv, note = hold_undetermined_directions(
-                augmented, final, u, z, effects=effects, settings=settings, failures=failures,
-                held_cv=final_cv,
-            )  # fmt: skip
-            final_cv, notes = (final_cv if cv is None else cv), notes + ([note] if note else [])
+        augmented, final, final_cv, note = _augmented_fit(
+            start, selection, (baseline, declared_cv), u, z, settings, failures
+        )
+        notes += [note] if note else []
     fits["final"] = (final, None, final_cv)
-    fitted_augmented = warm_physics(augmented, final)
+    corrected = (warm_physics(augmented, final), final, library, measured_states(physics.output))
+    fits |= _corrected_fits(corrected, u, z, settings, failures, notes, clock)
+    found = dict(
+        hypotheses=hypotheses, range_facts=facts, candidates=candidates, selection=trail,
+        effects=effects, single_fits=singles, evidence=snapshot, failures=failures, notes=notes,
+        timings=clock.seconds, set_fits={"declared physics": baseline, **set_fits},
+    )  # fmt: skip
+    return _loop_result(physics, _holding_as(augment(physics, *effects), augmented), fits, found)
+
+
+def _record_facts(physics, z, run) -> list:
+    """What the declared physics' simulation ``run`` says of the measured outputs ``z``:
+    their ceilings and floors, and their repeated one-sample jumps."""
+    names = _output_names(physics, z.shape[1])
+    return range_violations(z, run.outputs, names) + output_jumps(z, run.outputs, names)
+
+
+def _augmented_fit(start, selection, fallback, u, z, settings, failures):
+    """``(augmented physics, its fit, its CV RMSE, note)`` for the effects of
+    ``selection`` (:func:`_select_effects`' value) added to ``start``: the fit on the whole
+    record (:func:`_final_fit`; without effects, or when it fails, ``fallback``, the
+    declared physics' fit and its CV RMSE), with a parameter held on each direction it
+    leaves undetermined (:func:`hold_undetermined_directions`, whose note it returns;
+    ``None`` without)."""
+    effects, trail, _, warm, set_fits = selection
+    baseline, declared_cv = fallback
+    augmented = augment(start, *effects).with_parameters(**warm)
+    final = _final_fit(augmented, effects, set_fits, u, z, settings, failures) or baseline
+    final_cv = dict(trail).get(_label(effects), declared_cv)
+    if not effects or final is baseline:
+        return augmented, final, final_cv, None
+    augmented, final, cv, note = hold_undetermined_directions(
+        augmented, final, u, z, effects=effects, settings=settings, failures=failures,
+        held_cv=final_cv,
+    )  # fmt: skip
+    return augmented, final, (final_cv if cv is None else cv), note
+
+
+def _corrected_fits(corrected, u, z, settings, failures, notes, clock) -> dict:
+    """The augmented physics with a sparse δ of its state equations and with one of its
+    output map, as ``fits`` holds them (``{key: (estimator, path, CV RMSE)}``), each as
+    ``settings`` asks. ``corrected`` is ``(physics started at the final fit, the final
+    fit, the dictionary, the states the outputs measure)``."""
+    fitted_augmented, final, library, measured = corrected
+    fits = {}
     if settings.fit_delta:
         with _stage(clock, MODEL_LABELS["final_with_delta"], settings):
             fits["final_with_delta"] = _scored_delta(
@@ -1395,38 +1433,27 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
     if settings.fit_delta and settings.fit_output_delta:
         with _stage(clock, MODEL_LABELS["final_with_output_delta"], settings):
             fits["final_with_output_delta"] = _scored_output_delta(
-                fitted_augmented, final, measured_states(physics.output), u, z, settings,
-                failures, notes,
-            )  # fmt: skip
+                fitted_augmented, final, measured, u, z, settings, failures, notes
+            )
+    return fits
+
+
+def _loop_result(physics, augmented_physics, fits: dict, found: dict) -> LoopResult:
+    """The :class:`LoopResult` of ``fits`` (``{key: (estimator, path, CV RMSE)}``, the
+    models of :data:`MODEL_LABELS` that were fitted) and of what else the loop ``found``
+    (the other fields, by name); the CV-best model is chosen here."""
     models = {key: fit[0] for key, fit in fits.items()}
     paths = {key: fit[1] for key, fit in fits.items()}
     cv_errors = {key: fit[2] for key, fit in fits.items() if fit[0] is not None}
-    chosen = _choose(cv_errors, models, notes)
+    chosen = _choose(cv_errors, models, found["notes"])
     return LoopResult(
-        physics,
-        _holding_as(augment(physics, *effects), augmented),
-        baseline,
-        models.get("with_delta"),
-        final,
-        models.get("final_with_delta"),
-        paths.get("with_delta"),
-        hypotheses,
-        facts,
-        candidates,
-        trail,
-        effects,
-        singles,
-        paths.get("final_with_delta"),
-        snapshot,
-        cv_errors,
-        chosen,
-        failures,
-        notes,
-        clock.seconds,
-        {"declared physics": baseline, **set_fits},
-        models.get("final_with_output_delta"),
-        paths.get("final_with_output_delta"),
-    )
+        physics=physics, augmented_physics=augmented_physics, baseline=models["baseline"],
+        with_delta=models.get("with_delta"), final=models["final"],
+        final_with_delta=models.get("final_with_delta"), gamma_path=paths.get("with_delta"),
+        final_gamma_path=paths.get("final_with_delta"), cv_errors=cv_errors, chosen=chosen,
+        final_with_output_delta=models.get("final_with_output_delta"),
+        output_gamma_path=paths.get("final_with_output_delta"), **found,
+    )  # fmt: skip
 
 
 def _final_fit(augmented, effects, set_fits: dict, u, z, settings, failures):
