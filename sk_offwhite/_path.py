@@ -488,9 +488,12 @@ def fit_gamma_path(
     if not 0 <= min_improvement < 1:
         raise ValueError(f"min_improvement must be in [0, 1), got {min_improvement!r}.")
     u_arr, z_arr = np.asarray(u, float), np.asarray(z, float)
-    if gammas is not None and np.any(np.diff(_check_gammas(gammas)) >= 0):
-        min_improvement = 0.0  # the early end compares each gamma with a larger one
-    values, gamma_max = _grid(estimator, u_arr, z_arr, gammas, (n_gammas, eps), sample_index)
+    if gammas is None:
+        values, gamma_max = _grid(estimator, u_arr, z_arr, n_gammas, eps, sample_index)
+    else:
+        values, gamma_max = _check_gammas(gammas), np.nan
+        if np.any(np.diff(values) >= 0):
+            min_improvement = 0.0  # the early end compares each gamma with a larger one
     jobs = folds = None
     if cv is not None:
         window = _init_window(estimator, init_window, len(u_arr))
@@ -546,14 +549,11 @@ def fit_gamma_path(
     )
 
 
-def _grid(estimator, u, z, gammas, default, sample_index) -> tuple[np.ndarray, float]:
-    """``(grid, gamma_max)``: ``gammas`` checked (``gamma_max`` nan), or, for ``None``, the
-    :func:`gamma_grid` of ``default = (n_gammas, eps)`` below the record's
-    :math:`\\gamma_{max}` (the physics-only fit's, which is computed for it)."""
-    if gammas is not None:
-        return _check_gammas(gammas), np.nan
+def _grid(estimator, u, z, n_gammas: int, eps: float, sample_index) -> tuple[np.ndarray, float]:
+    """``(grid, gamma_max)``: the :func:`gamma_grid` of ``n_gammas`` values below the
+    record's :math:`\\gamma_{max}` (the physics-only fit's, which is computed for it)."""
     estimator._fit(u, z, sample_index, reference_only=True)
-    return gamma_grid(estimator.gamma_max_, *default), estimator.gamma_max_
+    return gamma_grid(estimator.gamma_max_, n_gammas, eps), estimator.gamma_max_
 
 
 def _fold_scores(folds: np.ndarray, failed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -1376,12 +1376,14 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
         notes += _equivalents(effects, singles, settings.tolerance)
     with _stage(clock, MODEL_LABELS["final"], settings):
         augmented, final, final_cv, note = _augmented_fit(
-            start, selection, (baseline, declared_cv), u, z, settings, failures
+            start, selection, baseline, declared_cv, u, z, settings, failures
         )
         notes += [note] if note else []
     fits["final"] = (final, None, final_cv)
-    corrected = (warm_physics(augmented, final), final, library, measured_states(physics.output))
-    fits |= _corrected_fits(corrected, u, z, settings, failures, notes, clock)
+    fits |= _corrected_fits(
+        augmented, final, library, measured_states(physics.output), u, z, settings, failures,
+        notes, clock,
+    )  # fmt: skip
     found = dict(
         hypotheses=hypotheses, range_facts=facts, candidates=candidates, selection=trail,
         effects=effects, single_fits=singles, evidence=snapshot, failures=failures, notes=notes,
@@ -1397,15 +1399,14 @@ def _record_facts(physics, z, run) -> list:
     return range_violations(z, run.outputs, names) + output_jumps(z, run.outputs, names)
 
 
-def _augmented_fit(start, selection, fallback, u, z, settings, failures):
+def _augmented_fit(start, selection, baseline, declared_cv, u, z, settings, failures):
     """``(augmented physics, its fit, its CV RMSE, note)`` for the effects of
     ``selection`` (:func:`_select_effects`' value) added to ``start``: the fit on the whole
-    record (:func:`_final_fit`; without effects, or when it fails, ``fallback``, the
-    declared physics' fit and its CV RMSE), with a parameter held on each direction it
-    leaves undetermined (:func:`hold_undetermined_directions`, whose note it returns;
-    ``None`` without)."""
+    record (:func:`_final_fit`; without effects, or when it fails, the declared physics'
+    fit ``baseline`` and its CV RMSE ``declared_cv``), with a parameter held on each
+    direction it leaves undetermined (:func:`hold_undetermined_directions`, whose note it
+    returns; ``None`` without)."""
     effects, trail, _, warm, set_fits = selection
-    baseline, declared_cv = fallback
     augmented = augment(start, *effects).with_parameters(**warm)
     final = _final_fit(augmented, effects, set_fits, u, z, settings, failures) or baseline
     final_cv = dict(trail).get(_label(effects), declared_cv)
@@ -1418,12 +1419,12 @@ def _augmented_fit(start, selection, fallback, u, z, settings, failures):
     return augmented, final, (final_cv if cv is None else cv), note
 
 
-def _corrected_fits(corrected, u, z, settings, failures, notes, clock) -> dict:
-    """The augmented physics with a sparse δ of its state equations and with one of its
-    output map, as ``fits`` holds them (``{key: (estimator, path, CV RMSE)}``), each as
-    ``settings`` asks. ``corrected`` is ``(physics started at the final fit, the final
-    fit, the dictionary, the states the outputs measure)``."""
-    fitted_augmented, final, library, measured = corrected
+def _corrected_fits(augmented, final, library, measured, u, z, settings, failures, notes, clock):
+    """The ``augmented`` physics, started at its ``final`` fit, with a sparse δ from
+    ``library`` of its state equations and with one of its output map (whose outputs read
+    the states ``measured``), as ``fits`` holds them (``{key: (estimator, path, CV
+    RMSE)}``), each as ``settings`` asks."""
+    fitted_augmented = warm_physics(augmented, final)
     fits = {}
     if settings.fit_delta:
         with _stage(clock, MODEL_LABELS["final_with_delta"], settings):
