@@ -316,13 +316,15 @@ WARM_FITS = 5
 are compared with (a single one measured 0.22 and 0.34 s in two runs)."""
 
 
-def grid_against_one() -> dict:
+def grid_against_one() -> tuple[dict, tuple]:
     """``fit_gamma_path`` over 8 γ (3 folds) against one fit at the γ it chose (the
     estimator is left there; the fastest of :data:`WARM_FITS`), in one process and with the
     folds in two worker processes (``n_jobs=2``; "cold" is their first path, "warm" the
     fastest of the next :data:`WARM_PATHS`); and
     ``GridSearchCV`` over the path's 8 γ (3 folds, one process), warm, with the traces and
-    compilations it makes (``jax.monitoring``)."""
+    compilations it makes (``jax.monitoring``). Also returns the path counted for its
+    solver runs and those runs, ``(path, calls)`` as :func:`_captured_solver_calls` lists
+    them, for :func:`batched_against_sequential` and :func:`creeping_runs`."""
     from sklearn.model_selection import KFold
 
     from sk_offwhite import fit_gamma_path
@@ -340,15 +342,15 @@ def grid_against_one() -> dict:
             out[f"path{suffix}_cold"], out[f"path{suffix}_warm"] = seconds[0], min(seconds[1:])
         out |= _grid_search(est, path.gammas, u, z)
         out["one_fit_warm"] = min(_timed(lambda: est.fit(u, z), WARM_FITS))
-        with _captured_solver_calls() as calls:
-            fit_gamma_path(est, u, z, n_gammas=8, cv=KFold(3))
-        out |= _iteration_counts("path", calls)
+        with _captured_solver_calls() as counted_calls:
+            counted = fit_gamma_path(est, u, z, n_gammas=8, cv=KFold(3))
+        out |= _iteration_counts("path", counted_calls)
         with _captured_solver_calls() as calls:
             est.fit(u, z)
         out |= _iteration_counts("one_fit", calls)
     for key in ("path_warm", "path_2jobs_warm", "grid_search_warm"):
         out[key.replace("_warm", "_ratio")] = out[key] / out["one_fit_warm"]
-    return out
+    return out, (counted, counted_calls)
 
 
 def batched_against_sequential(path_calls, repeats: int = 3) -> dict:
@@ -358,7 +360,8 @@ def batched_against_sequential(path_calls, repeats: int = 3) -> dict:
     passes; a run started where every term is zero barely moves them, whatever its γ),
     its γ replaced by each of the path's. Seconds are the fastest of ``repeats`` after a
     first call (compilation excluded); ``max_free_difference`` is the largest difference
-    between the two ways' solutions. ``path_calls``: :func:`_path_solver_calls`'s."""
+    between the two ways' solutions. ``path_calls``: the second value of
+    :func:`grid_against_one`."""
     import jax
     import jax.numpy as jnp
     import numpy as np
@@ -402,7 +405,7 @@ def creeping_runs(path_calls) -> dict:
     :data:`CREEP_MAX_ITER` iterations, and by scipy's ``least_squares`` (trust region,
     ``x_scale='jac'``, the package's residuals and forward-mode Jacobian, every tolerance
     1e-15): whether their length belongs to the problem or to this solver.
-    ``path_calls``: :func:`_path_solver_calls`'s."""
+    ``path_calls``: the second value of :func:`grid_against_one`."""
     import jax
 
     from sk_offwhite._lm_device import levenberg_marquardt_on_device
@@ -461,20 +464,6 @@ def _path_estimator():
         cascaded_tanks_physics(fixed={"k4": K4}), library=ps.PolynomialLibrary(), gamma=1e-2
     )
     return est, u, z
-
-
-def _path_solver_calls():
-    """``fit_gamma_path`` over 8 γ (3 contiguous folds) and its solver runs, as
-    :func:`_captured_solver_calls` lists them: ``(path, calls)``."""
-    from sklearn.model_selection import KFold
-
-    from sk_offwhite import fit_gamma_path
-
-    est, u, z = _path_estimator()
-    with warnings.catch_warnings(), _captured_solver_calls() as calls:
-        warnings.simplefilter("ignore")
-        path = fit_gamma_path(est, u, z, n_gammas=8, cv=KFold(3))
-    return path, calls
 
 
 def _device_run(free0, problem, model, layout, *, max_iter, tol, scaling, **_):
@@ -719,8 +708,9 @@ def main(argv=None):
         "fit": cold_and_warm(args.rounds, args.jax_sysid_python),
     }
     if not args.only_fit:
-        path_calls = _path_solver_calls()
-        results |= {"per_step": per_step(args.repeats), "grid": grid_against_one(),
+        steps = per_step(args.repeats)
+        grid, path_calls = grid_against_one()
+        results |= {"per_step": steps, "grid": grid,
                     "batched": batched_against_sequential(path_calls),
                     "creeping": creeping_runs(path_calls), "memory": memory()}  # fmt: skip
     if args.main_job:
