@@ -34,7 +34,7 @@ def twenty_feature_library():
 
 def tanks_problem(library, horizon):
     """The cost of the tanks fit as a jitted value-and-gradient of the free variables
-    (built by :func:`bench_scaling.value_and_grad_problem`); call under ``enable_x64``."""
+    (built by `bench_scaling.value_and_grad_problem`); call under ``enable_x64``."""
     data = make_cascaded_tanks(
         n_samples=N_SAMPLES, overflow=False, saturation=False, noise_std=0.0, random_state=0
     )

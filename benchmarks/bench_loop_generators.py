@@ -235,8 +235,8 @@ def run(
 
 
 def _timed_loop(physics, data, settings) -> tuple:
-    """:func:`close_the_loop` of ``physics`` on ``data``'s estimation record, its warnings
-    silenced, and its wall time in seconds."""
+    """[`close_the_loop`][sk_offwhite.loop.close_the_loop] of ``physics`` on ``data``'s estimation
+    record, its warnings silenced, and its wall time in seconds."""
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

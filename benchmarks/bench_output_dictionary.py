@@ -2,7 +2,7 @@
 
 Runs the README's main job loop once (the same settings), then refits the augmented
 physics it chose with a sparse correction of its output map (``delta_outputs=[0]``) on
-Gaussian bumps of ``x2`` (:class:`~sk_offwhite.RadialBasis`) for each setting: the number
+Gaussian bumps of ``x2`` ([`RadialBasis`][sk_offwhite.RadialBasis]) for each setting: the number
 of bumps, the span of their centres and their width (in standard deviations of the
 simulated ``x2``; ``spacing``: the centres' spacing), with or without the constant and
 ``x2`` itself, and with ``x2`` clipped into its simulated range or not. γ is chosen on the

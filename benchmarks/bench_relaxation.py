@@ -1,18 +1,18 @@
 r"""Exact supports of the sparse relaxation (10) on an easy, incoherent problem.
 
 Run with ``python benchmarks/bench_relaxation.py [--draws N]``. Each draw is
-:math:`y = \Phi_\theta\theta + \Phi\omega + \eta` with 400 rows, 2 physical regressors,
-40 i.i.d. Gaussian dictionary columns, a 3-sparse :math:`\omega` with coefficients of order
-one (random sign, magnitude in [0.5, 2]) and noise uniform in :math:`\pm b`,
-:math:`b = 10^{-3}`. Three noise bounds:
+$y = \Phi_\theta\theta + \Phi\omega + \eta$ with 400 rows, 2 physical regressors,
+40 i.i.d. Gaussian dictionary columns, a 3-sparse $\omega$ with coefficients of order
+one (random sign, magnitude in [0.5, 2]) and noise uniform in $\pm b$,
+$b = 10^{-3}$. Three noise bounds:
 
-* :math:`\mu = \|\eta\|_2`, the exact noise norm (the tightest valid bound: the
-  :math:`\ell_1` solution then carries small spurious terms, up to about 2e-5 of the largest);
-* :math:`\mu = 1.05\|\eta\|_2`;
-* :math:`\mu = b\sqrt{T}`, Assumption 2 from the per-sample bound (about
-  :math:`1.7\|\eta\|_2` for uniform noise).
+* $\mu = \|\eta\|_2$, the exact noise norm (the tightest valid bound: the
+  $\ell_1$ solution then carries small spurious terms, up to about 2e-5 of the largest);
+* $\mu = 1.05\|\eta\|_2$;
+* $\mu = b\sqrt{T}$, Assumption 2 from the per-sample bound (about
+  $1.7\|\eta\|_2$ for uniform noise).
 
-Prints, for ``prune=False`` (the thresholded :math:`\ell_1` solution) and ``prune=True``
+Prints, for ``prune=False`` (the thresholded $\ell_1$ solution) and ``prune=True``
 (pruned support, least-squares refit), how many draws return exactly the true support,
 the mean support size, the largest ``residual_norm / mu`` and the mean time per call
 (after one warm-up call).

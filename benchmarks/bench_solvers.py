@@ -2,9 +2,9 @@
 
 Run with ``python benchmarks/bench_solvers.py [--repeats 3] [--default-loops] [--out DIR]``
 (needs ``pip install -e '.[bench]'`` for optimistix). Each solver minimises the same
-:math:`\\|r\\|^2`, the package's multi-step residuals of the Cascaded Tanks (eq. 21, ``k4``
+$\\|r\\|^2$, the package's multi-step residuals of the Cascaded Tanks (eq. 21, ``k4``
 fixed; the measured estimation record, repeated for 10 000 samples) from the same start,
-with :math:`\\gamma = 0` so that every solver minimises the same smooth function:
+with $\\gamma = 0$ so that every solver minimises the same smooth function:
 
 * physics only (5 free variables) at 1000 and 10 000 samples;
 * with a degree-2 polynomial dictionary on both states (25 free variables), 1000 samples.

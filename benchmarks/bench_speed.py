@@ -38,8 +38,8 @@ prints (and writes ``bench_speed.md`` / ``.json`` in ``--out``, default
   empty and then filled: wall time, the report's time and the peak RSS.
 
 Everything runs with XLA's default for loops on CPU unless ``--fused-loops`` is given, which
-calls :func:`sk_offwhite.enable_fused_loops` first (inherited by every process the script
-starts, the main job included).
+calls [`sk_offwhite.enable_fused_loops`][sk_offwhite.enable_fused_loops] first (inherited by every
+process the script starts, the main job included).
 """
 
 from __future__ import annotations
@@ -318,13 +318,13 @@ are compared with (a single one measured 0.22 and 0.34 s in two runs)."""
 
 def grid_against_one() -> tuple[dict, tuple]:
     """``fit_gamma_path`` over 8 γ (3 folds) against one fit at the γ it chose (the
-    estimator is left there; the fastest of :data:`WARM_FITS`), in one process and with the
+    estimator is left there; the fastest of `WARM_FITS`), in one process and with the
     folds in two worker processes (``n_jobs=2``; "cold" is their first path, "warm" the
-    fastest of the next :data:`WARM_PATHS`); and
+    fastest of the next `WARM_PATHS`); and
     ``GridSearchCV`` over the path's 8 γ (3 folds, one process), warm, with the traces and
     compilations it makes (``jax.monitoring``). Also returns the path counted for its
-    solver runs and those runs, ``(path, calls)`` as :func:`_captured_solver_calls` lists
-    them, for :func:`batched_against_sequential` and :func:`creeping_runs`."""
+    solver runs and those runs, ``(path, calls)`` as `_captured_solver_calls` lists
+    them, for `batched_against_sequential` and `creeping_runs`."""
     from sklearn.model_selection import KFold
 
     from sk_offwhite import fit_gamma_path
@@ -361,7 +361,7 @@ def batched_against_sequential(path_calls, repeats: int = 3) -> dict:
     its γ replaced by each of the path's. Seconds are the fastest of ``repeats`` after a
     first call (compilation excluded); ``max_free_difference`` is the largest difference
     between the two ways' solutions. ``path_calls``: the second value of
-    :func:`grid_against_one`."""
+    `grid_against_one`."""
     import jax
     import jax.numpy as jnp
     import numpy as np
@@ -396,16 +396,16 @@ def batched_against_sequential(path_calls, repeats: int = 3) -> dict:
 
 CREEP_RUNS, CREEP_MAX_ITER = 3, 2000
 """How many of the path's unpenalised runs that ended at ``max_iter`` are run again, and
-how far (:func:`creeping_runs`)."""
+how far (`creeping_runs`)."""
 
 
 def creeping_runs(path_calls) -> dict:
-    """The first :data:`CREEP_RUNS` runs of the support path that ended at ``max_iter``
+    """The first `CREEP_RUNS` runs of the support path that ended at ``max_iter``
     without a penalty (the refits on a support), run again from their start with
-    :data:`CREEP_MAX_ITER` iterations, and by scipy's ``least_squares`` (trust region,
+    `CREEP_MAX_ITER` iterations, and by scipy's ``least_squares`` (trust region,
     ``x_scale='jac'``, the package's residuals and forward-mode Jacobian, every tolerance
     1e-15): whether their length belongs to the problem or to this solver.
-    ``path_calls``: the second value of :func:`grid_against_one`."""
+    ``path_calls``: the second value of `grid_against_one`."""
     import jax
 
     from sk_offwhite._lm_device import levenberg_marquardt_on_device
@@ -433,7 +433,7 @@ def creeping_runs(path_calls) -> dict:
 
 def _trust_region(free0, problem, model, layout):
     """scipy's ``least_squares`` on the package's residuals from ``free0`` (forward-mode
-    Jacobian, ``x_scale='jac'``, every tolerance 1e-15, :data:`CREEP_MAX_ITER`
+    Jacobian, ``x_scale='jac'``, every tolerance 1e-15, `CREEP_MAX_ITER`
     evaluations at most)."""
     import jax
     import numpy as np
@@ -452,7 +452,7 @@ def _trust_region(free0, problem, model, layout):
 
 
 def _path_estimator():
-    """The Cascaded Tanks' estimator of :func:`grid_against_one` (physics, ``k4`` fixed, and
+    """The Cascaded Tanks' estimator of `grid_against_one` (physics, ``k4`` fixed, and
     the polynomial library) and its estimation record ``(est, u, z)``."""
     import pysindy as ps
 
@@ -468,8 +468,8 @@ def _path_estimator():
 
 def _device_run(free0, problem, model, layout, *, max_iter, tol, scaling, **_):
     """``(run_at, start)``: the whole device run of
-    :func:`~sk_offwhite._lm_device.levenberg_marquardt_on_device`'s arguments as a function
-    of γ and its start carry (:func:`~sk_offwhite._lm_device.device_run`)."""
+    `levenberg_marquardt_on_device`'s arguments as a function
+    of γ and its start carry (`device_run`)."""
     from sk_offwhite import _lm_device as device
 
     start, problem, static = device.device_run(free0, problem, model, layout, max_iter, scaling)
@@ -502,7 +502,7 @@ def _captured_solver_calls():
 
 def _iteration_counts(name: str, calls: list) -> dict:
     """How many solver runs, how many iterations in all, and how many runs ended at
-    ``max_iter`` (``calls`` as :func:`_captured_solver_calls` lists them): the work a path
+    ``max_iter`` (``calls`` as `_captured_solver_calls` lists them): the work a path
     does against one fit, whatever the compilation."""
     runs = [result for _, _, result in calls]
     return {

@@ -5,10 +5,11 @@ system (the measured Cascaded Tanks, the vehicle of Section 5.1, and the synthet
 with an undeclared effect) it fits, on the estimation record only:
 
 * sk_offwhite, physics only; physics + sparse δ; after the closed loop
-  (:func:`sk_offwhite.loop.close_the_loop`), with and without δ. Every fit with δ runs the
-  support path (:func:`sk_offwhite.fit_gamma_path`) over the default grid of the
-  dimensionless γ relative to γ_max of the record (5 values, 3 with ``--quick``, down to
-  1e-4 γ_max) and chooses γ by 3-fold CV on the estimation record: no γ is set by hand;
+  ([`sk_offwhite.loop.close_the_loop`][sk_offwhite.loop.close_the_loop]), with and without δ. Every
+  fit with δ runs the support path ([`sk_offwhite.fit_gamma_path`][sk_offwhite.fit_gamma_path]) over
+  the default grid of the dimensionless γ relative to γ_max of the record (5 values, 3 with
+  ``--quick``, down to 1e-4 γ_max) and chooses γ by 3-fold CV on the estimation record: no γ is set
+  by hand;
 * pysindy ``DiscreteSINDy`` on a delay embedding (STLSQ and SR3; for the tanks also the
   physics-informed square-root library), lags and threshold by the same CV;
 
@@ -216,7 +217,7 @@ def run_sk_offwhite(case: Case, settings: LoopSettings) -> list[dict]:
     """The four models of the closed loop, each scored on validation.
 
     If the loop fails (e.g. a physics that diverges in free run from its guess, as the
-    vehicle's), the failure is a row and the plain fits of :func:`run_direct` are reported.
+    vehicle's), the failure is a row and the plain fits of `run_direct` are reported.
     """
     try:
         return run_loop(case, settings)
@@ -227,7 +228,8 @@ def run_sk_offwhite(case: Case, settings: LoopSettings) -> list[dict]:
 
 
 def run_loop(case: Case, settings: LoopSettings) -> list[dict]:
-    """The four models of :func:`close_the_loop`, each scored on validation."""
+    """The four models of [`close_the_loop`][sk_offwhite.loop.close_the_loop], each scored on
+    validation."""
     settings = replace(settings, delta_states=case.delta_states)
     start = time.perf_counter()
     result = close_the_loop(case.physics, case.library, case.u, case.z, settings=settings)

@@ -10,9 +10,10 @@ Run: ``python examples/cascaded_tanks_loop.py [--out DIR] [--quick] [--quiet] [-
 [--relax-exponents] [--selection cv|tail] [--n-jobs N] [--no-fused-loops]``
 (``DIR`` defaults to ``reports/cascaded_tanks``); the stages of the loop are logged as they
 run (``--quiet`` switches that off); compiled programs are kept on disk for the next run
-(:func:`sk_offwhite.enable_compilation_cache`; ``--no-cache`` switches that off), and XLA
-compiles each simulation loop into one kernel (:func:`sk_offwhite.enable_fused_loops`;
-``--no-fused-loops`` switches that off).
+([`sk_offwhite.enable_compilation_cache`][sk_offwhite.enable_compilation_cache]; ``--no-cache``
+switches that off), and XLA compiles each simulation loop into one kernel
+([`sk_offwhite.enable_fused_loops`][sk_offwhite.enable_fused_loops]; ``--no-fused-loops`` switches
+that off).
 """
 
 from __future__ import annotations

@@ -23,7 +23,7 @@ Variants:
   Euler sub-steps, one RK4 step): is the discretisation part of what the model misses?
 * the overflows' corners fitted (``Overflow(..., fit_corner=True)``) instead of fixed at
   2.5 % of each level's spread;
-* a dead zone of the pump (:class:`~sk_offwhite.DeadZone`: no flow below a voltage, as a
+* a dead zone of the pump ([`DeadZone`][sk_offwhite.DeadZone]: no flow below a voltage, as a
   pump that must lift the water to the upper tank's inlet), its width started at 2 % of
   the voltage's RMS (next to the model without it, where the loop's candidate starts)
   and at 25 % (where it started before), alone and with the overflows' corners fitted;
@@ -72,20 +72,20 @@ from sk_offwhite.loop import (
 )
 
 FREED_CONSTANTS = {"b": (1.0, (0.2, 3.0)), "c1": (0.0, (-0.05, 1.0)), "c2": (0.0, (-0.05, 1.0))}
-"""The constants of :func:`tanks_rhs` beyond Torricelli's exponents: declared value, bounds
+"""The constants of `tanks_rhs` beyond Torricelli's exponents: declared value, bounds
 (the slopes' in 1/V, the units of this record's levels)."""
 
 
 def tanks_rhs(x, u, theta):
     r"""Eq. (21) with every constant a variant frees:
 
-    .. math::
+    $$
+    \dot x_1 = \frac{k_4 u^b - k_1 x_1^{a_1}}{1 + c_1 x_1}, \qquad
+    \dot x_2 = \frac{k_2 x_1^{a_1} - k_3 x_2^{a_2}}{1 + c_2 x_2},
+    $$
 
-        \dot x_1 = \frac{k_4 u^b - k_1 x_1^{a_1}}{1 + c_1 x_1}, \qquad
-        \dot x_2 = \frac{k_2 x_1^{a_1} - k_3 x_2^{a_2}}{1 + c_2 x_2},
-
-    eq. (21) itself at :math:`a_i = 1/2`, :math:`b = 1`, :math:`c_i = 0` (levels floored as
-    in :func:`~sk_offwhite.datasets.safe_sqrt`)."""
+    eq. (21) itself at $a_i = 1/2$, $b = 1$, $c_i = 0$ (levels floored as
+    in [`safe_sqrt`][sk_offwhite.datasets.safe_sqrt])."""
     flow1 = jnp.maximum(x[0], 1e-6) ** theta["a1"]
     flow2 = jnp.maximum(x[1], 1e-6) ** theta["a2"]
     inflow = theta["k4"] * jnp.maximum(u[0], 1e-6) ** theta["b"]
@@ -96,7 +96,7 @@ def tanks_rhs(x, u, theta):
 
 
 def relaxable_tanks_physics(method: str | None = None, n_substeps: int = 1) -> PhysicsModel:
-    """The main job's physics written with :func:`tanks_rhs`, every constant fixed at its
+    """The main job's physics written with `tanks_rhs`, every constant fixed at its
     declared value and relaxable; integrated by one explicit-Euler step per sample as eq.
     (21), or by ``n_substeps`` steps of ``method`` (``"euler"`` or ``"rk4"``)."""
     base = cascaded_tanks_physics(fixed={"k4": 0.05}, relaxable_exponents=True)
@@ -113,7 +113,7 @@ def relaxable_tanks_physics(method: str | None = None, n_substeps: int = 1) -> P
 
 
 def started_from(physics, fitted: GreyBoxSparseRegressor, **values):
-    """``physics`` started from ``fitted`` (:func:`~sk_offwhite.loop.warm_physics`), then
+    """``physics`` started from ``fitted`` ([`warm_physics`][sk_offwhite.loop.warm_physics]), then
     from those of ``values`` it has."""
     starts = {
         k: Parameter(float(v), physics.parameters[k].bounds)
@@ -162,8 +162,8 @@ def held_out_scores(physics, u, z, settings: LoopSettings, folds, tail: bool) ->
 def score(label, physics, fitted, data, settings, folds=(3,), tail=False, delay=0) -> dict:
     """Refit ``physics`` from ``fitted``, hold a parameter on each direction of the fit the
     data do not determine, as the loop does on its final model
-    (:func:`~sk_offwhite.loop.hold_undetermined_directions`; ``held``: their names), and
-    score it (held-out scores, estimation, validation)."""
+    ([`hold_undetermined_directions`][sk_offwhite.loop.hold_undetermined_directions]; ``held``:
+    their names), and score it (held-out scores, estimation, validation)."""
     u_est, u_val = delayed(data.u_est, delay), delayed(data.u_val, delay)
     template = estimator(started_from(physics, fitted), settings)
     est = fit_continued(template, u_est, data.z_est, settings.horizon)

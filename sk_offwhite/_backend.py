@@ -13,7 +13,7 @@ application's to decide (the examples raise it; ``--no-fused-loops`` keeps them 
 
 ``jnp.asarray`` of a NumPy array outside a trace runs a one-operation XLA program, compiled
 on its first use for each shape and dtype (5-16 ms each, a dozen of them in a first fit);
-:func:`to_device` transfers the same values with ``jax.device_put``, which compiles nothing.
+`to_device` transfers the same values with ``jax.device_put``, which compiles nothing.
 """
 
 from __future__ import annotations
@@ -28,8 +28,8 @@ import numpy as np
 __all__ = ["FUSED_LOOP_BYTES", "enable_fused_loops", "fused_loops", "to_device"]
 
 FUSED_LOOP_BYTES = 10**9
-"""The threshold :func:`enable_fused_loops` sets (bytes accessed by one loop, as XLA's
-cost analysis counts them): every loop of the package's programs is below it."""
+"""The threshold [`enable_fused_loops`][sk_offwhite.enable_fused_loops] sets (bytes accessed by one
+loop, as XLA's cost analysis counts them): every loop of the package's programs is below it."""
 
 _OPTION = "xla_cpu_small_while_loop_byte_threshold"
 _EXTRA = "--xla_backend_extra_options="
@@ -83,8 +83,8 @@ def enable_fused_loops(byte_limit: int = FUSED_LOOP_BYTES) -> bool:
 
 def fused_loops() -> bool:
     """Whether this process's loops are compiled into one kernel: the option of
-    :func:`enable_fused_loops` is in ``XLA_FLAGS`` (an application's value is taken as it
-    is), and was there before JAX started its backend."""
+    [`enable_fused_loops`][sk_offwhite.enable_fused_loops] is in ``XLA_FLAGS`` (an application's
+    value is taken as it is), and was there before JAX started its backend."""
     return _OPTION in os.environ.get("XLA_FLAGS", "") and not _set_too_late
 
 

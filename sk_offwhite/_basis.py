@@ -3,9 +3,9 @@ r"""Compile a dictionary of basis functions into pure ``jax.numpy`` functions.
 The black-box correction of the model ``x[k+1] = f(x, u; θ) + δ(x, u; ω)`` is
 a sparse linear combination of basis functions evaluated on ``v = [x; u]``:
 
-.. math::
-
-    δ_i(v) = \sum_{j=1}^{m} Ω_{ij} \, Φ_{ij}(v), \qquad i = 1, \dots, n_δ,
+$$
+δ_i(v) = \sum_{j=1}^{m} Ω_{ij} \, Φ_{ij}(v), \qquad i = 1, \dots, n_δ,
+$$
 
 where ``Φ = evaluate(inner_params, v)`` has shape ``(n_delta, m)``. Two kinds
 of dictionaries are supported:
@@ -15,11 +15,11 @@ of dictionaries are supported:
   is numpy-only, so every feature is re-implemented in ``jax.numpy`` from the
   library's description. The row ``φ(v)`` is shared by all δ equations:
   ``Φ_{ij}(v) = φ_j(v)``. There are no inner parameters.
-* **ridge functions** (:class:`RidgeBasis`), the paper's basis, whose inner
+* **ridge functions** ([`RidgeBasis`][sk_offwhite.RidgeBasis]), the paper's basis, whose inner
   weights are trainable per equation:
   ``Φ_{ij}(v) = σ_j(W_{i,:,j} · v + B_{ij})``.
 
-:func:`compile_basis` returns a :class:`CompiledBasis` whose ``evaluate`` is
+[`compile_basis`][sk_offwhite.compile_basis] returns a `CompiledBasis` whose ``evaluate`` is
 jit-able, vmap-able and differentiable with finite gradients everywhere
 (including ``v = 0``) for all built-in features.
 """
@@ -89,7 +89,7 @@ class CompiledBasis:
         The ``m`` feature names (column ``j`` of ``Φ``). For pysindy libraries
         these are exactly ``library.get_feature_names(input_features)``.
     init_params : dict of str to ndarray
-        Initial inner parameters (``{"W", "B"}`` for :class:`RidgeBasis`,
+        Initial inner parameters (``{"W", "B"}`` for [`RidgeBasis`][sk_offwhite.RidgeBasis],
         ``{}`` for pysindy libraries).
     trainable : dict of str to ndarray of bool
         Masks with the keys and shapes of ``init_params``; ``True`` entries are
@@ -150,7 +150,7 @@ def compile_basis(
     n_delta : int
         Number of state equations receiving a correction ``δ``.
     random_state : int, RandomState, Generator or None, optional
-        Seed of the random initialisation of :class:`RidgeBasis` weights.
+        Seed of the random initialisation of [`RidgeBasis`][sk_offwhite.RidgeBasis] weights.
         Ignored for pysindy libraries.
 
     Returns
@@ -190,7 +190,7 @@ def _cached(key, compile_, *args) -> CompiledBasis:
 
 
 def release_compiled_libraries() -> None:
-    """Forget the compiled dictionaries (see :func:`compile_basis`)."""
+    """Forget the compiled dictionaries (see [`compile_basis`][sk_offwhite.compile_basis])."""
     _COMPILED_LIBRARIES.clear()
 
 
@@ -237,7 +237,7 @@ def evaluate_matrix(
     Parameters
     ----------
     compiled : CompiledBasis
-        Output of :func:`compile_basis`.
+        Output of [`compile_basis`][sk_offwhite.compile_basis].
     inner_params : dict
         Inner parameters (e.g. ``compiled.init_params``).
     V : array-like, shape (n_samples, n_features)
@@ -307,7 +307,7 @@ def _as_vector(v: jnp.ndarray, n_features: int) -> jnp.ndarray:
 
 
 def _compile_radial(library: RadialBasis, features: tuple[str, ...], n_delta: int):
-    """Compile a :class:`~sk_offwhite._radial.RadialBasis` (the row shared by all rows)."""
+    """Compile a `RadialBasis` (the row shared by all rows)."""
     missing = [name for name in library.centers if name not in features]
     if missing:
         raise ValueError(f"RadialBasis names {missing}, which are not among {list(features)}.")
@@ -458,7 +458,7 @@ def _polynomial_features(library: PolynomialLibrary) -> FeatureFn:
     Each monomial is a plain product of entries (``v_0 v_0 v_1`` for powers
     ``(2, 1)``), starting from 1, so gradients are finite at ``v = 0``. The term
     order is pysindy's. Entries are taken one by one with static indices (see
-    :func:`~sk_offwhite._rollout.take`): no gather inside the simulation loop.
+    `take`): no gather inside the simulation loop.
     """
     powers = np.asarray(library.powers_, dtype=int)
     factors = [tuple(np.repeat(np.arange(powers.shape[1]), row).tolist()) for row in powers]
@@ -630,10 +630,10 @@ _DEFAULT_ACTIVATIONS = ("sigmoid", "softplus", "tanh", "sin", "cos", "identity",
 class RidgeBasis:
     r"""Ridge-function basis with per-equation trainable inner weights.
 
-    .. math::
-
-        δ_i(v) = \sum_{j=1}^{m} Ω_{ij} \, σ_j\big(r_{ij}(v)\big), \qquad
-        r_{ij}(v) = \sum_k W_{ikj} v_k + B_{ij},
+    $$
+    δ_i(v) = \sum_{j=1}^{m} Ω_{ij} \, σ_j\big(r_{ij}(v)\big), \qquad
+    r_{ij}(v) = \sum_k W_{ikj} v_k + B_{ij},
+    $$
 
     with ``W`` of shape ``(n_delta, n_features, m)`` and ``B`` of shape
     ``(n_delta, m)``. Feature ``j`` is named ``"<activation>(r<j>)"``, e.g.
@@ -663,7 +663,7 @@ class RidgeBasis:
     Notes
     -----
     Arguments are stored as given; shapes are validated by
-    :func:`compile_basis`, which knows ``n_features`` and ``n_delta``.
+    [`compile_basis`][sk_offwhite.compile_basis], which knows ``n_features`` and ``n_delta``.
     """
 
     def __init__(
@@ -730,7 +730,8 @@ def _check_activations(activations: Sequence[str]) -> tuple[str, ...]:
 def _compile_ridge(
     basis: RidgeBasis, features: tuple[str, ...], n_delta: int, random_state: Any
 ) -> CompiledBasis:
-    """Compile a :class:`RidgeBasis` for ``len(features)`` inputs and ``n_delta`` equations."""
+    """Compile a [`RidgeBasis`][sk_offwhite.RidgeBasis] for ``len(features)`` inputs and ``n_delta``
+    equations."""
     acts = _check_activations(basis.activations)
     n, m = len(features), len(acts)
     W0, B0 = _ridge_init(basis, (n_delta, n, m), (n_delta, m), random_state)

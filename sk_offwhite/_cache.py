@@ -24,8 +24,8 @@ __all__ = [
 ]
 
 DEFAULT_CACHE = Path("~/.cache/sk_offwhite/xla")
-"""Where :func:`enable_compilation_cache` keeps programs unless told otherwise (or
-``$SK_OFFWHITE_CACHE``)."""
+"""Where [`enable_compilation_cache`][sk_offwhite.enable_compilation_cache] keeps programs unless
+told otherwise (or ``$SK_OFFWHITE_CACHE``)."""
 
 
 def enable_compilation_cache(directory: str | os.PathLike | None = None) -> Path:
@@ -41,7 +41,7 @@ def enable_compilation_cache(directory: str | os.PathLike | None = None) -> Path
     ----------
     directory : path-like, optional
         Default ``$SK_OFFWHITE_CACHE``, else the directory JAX is already configured with
-        (``$JAX_COMPILATION_CACHE_DIR``), else :data:`DEFAULT_CACHE`; created if missing.
+        (``$JAX_COMPILATION_CACHE_DIR``), else `DEFAULT_CACHE`; created if missing.
 
     Returns
     -------
@@ -70,8 +70,8 @@ def release_compiled_programs() -> None:
     step function) compiles its own, and JAX keeps them for the life of the process, so a
     study that builds thousands of physics grows in memory with each. Call this between
     such fits to return that memory; refitting the same physics afterwards compiles again,
-    or loads from disk with :func:`enable_compilation_cache`. Fits of the same physics
-    reuse their programs and need no release.
+    or loads from disk with [`enable_compilation_cache`][sk_offwhite.enable_compilation_cache]. Fits
+    of the same physics reuse their programs and need no release.
     """
     from ._basis import release_compiled_libraries
 
@@ -89,7 +89,7 @@ def release_package_programs() -> int:
     its end in one process, 0.98 GB of it those programs (measured by clearing them). It
     calls this between its stages (``LoopSettings(release_programs=True)``); a structure
     fitted again afterwards is traced again and compiled again, or loaded from disk with
-    :func:`enable_compilation_cache`.
+    [`enable_compilation_cache`][sk_offwhite.enable_compilation_cache].
 
     Returns
     -------

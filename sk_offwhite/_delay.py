@@ -1,20 +1,20 @@
 r"""A dead time of an input: the command reaches the plant late (transport delay).
 
 Fluid that carries heat or a dose along a pipe, a conveyor, a sensor placed downstream,
-a controller's computation: the plant sees the command :math:`d` later than it was given.
+a controller's computation: the plant sees the command $d$ later than it was given.
 Under a zero-order hold the command is a staircase, and what the declared step sees over
-sample :math:`k` is the delayed staircase's mean over that sample; with
-:math:`d = (m + f)\,T_s`, :math:`m` whole samples and a fraction :math:`0 \le f < 1`,
+sample $k$ is the delayed staircase's mean over that sample; with
+$d = (m + f)\,T_s$, $m$ whole samples and a fraction $0 \le f < 1$,
 
-.. math::
+$$
+\tilde u_k = \frac{1}{T_s}\int_{kT_s}^{(k+1)T_s} u(t - d)\,dt
+           = (1 - f)\,u_{k-m} + f\,u_{k-m-1},
+$$
 
-    \tilde u_k = \frac{1}{T_s}\int_{kT_s}^{(k+1)T_s} u(t - d)\,dt
-               = (1 - f)\,u_{k-m} + f\,u_{k-m-1},
-
-exactly: the linear interpolation of the held commands. At :math:`d = 0` it is the
-command itself (the declared model). The commands of the last :math:`D` samples are the
+exactly: the linear interpolation of the held commands. At $d = 0$ it is the
+command itself (the declared model). The commands of the last $D$ samples are the
 effect's hidden states, so the delay can move continuously between whole samples while it
-is fitted; :math:`D T_s` bounds it.
+is fitted; $D T_s$ bounds it.
 """
 
 from __future__ import annotations
@@ -32,8 +32,8 @@ __all__ = ["InputDelay", "delayed_command"]
 
 def delayed_command(u, delay: float, sampling_time: float, start=None) -> np.ndarray:
     r"""What a dead time ``delay`` delivers over each held sample of the command sequence
-    ``u`` (1-D): :math:`\tilde u_k = (1 - f) u_{k-m} + f u_{k-m-1}` with
-    :math:`d / T_s = m + f`, the commands before the record at ``start`` (``u[0]`` when
+    ``u`` (1-D): $\tilde u_k = (1 - f) u_{k-m} + f u_{k-m-1}$ with
+    $d / T_s = m + f$, the commands before the record at ``start`` (``u[0]`` when
     ``None``: settled at the first command)."""
     u = np.asarray(u, dtype=np.float64)
     whole, fraction = divmod(delay / sampling_time, 1.0)
@@ -47,23 +47,23 @@ def delayed_command(u, delay: float, sampling_time: float, start=None) -> np.nda
 class InputDelay(Effect):
     r"""Input ``input`` reaches the plant after a dead time (a transport delay).
 
-    .. math::
+    $$
+    \tilde u_k = (1 - f)\,u_{k-m} + f\,u_{k-m-1}, \qquad d = (m + f)\,T_s,
+    $$
 
-        \tilde u_k = (1 - f)\,u_{k-m} + f\,u_{k-m-1}, \qquad d = (m + f)\,T_s,
-
-    the mean over sample :math:`k` of the held command delayed by :math:`d` (exact under a
-    zero-order hold; see :mod:`sk_offwhite._delay`). Parameter ``{name}_delay``
-    (:math:`0 \le d \le D T_s`, in the effects' unit of time,
-    :func:`~sk_offwhite._effects.time_step`, like ``sampling_time`` :math:`T_s`); hidden
+    the mean over sample $k$ of the held command delayed by $d$ (exact under a
+    zero-order hold; see `sk_offwhite._delay`). Parameter ``{name}_delay``
+    ($0 \le d \le D T_s$, in the effects' unit of time,
+    `time_step`, like ``sampling_time`` $T_s$); hidden
     states ``{name}_past_1`` … ``{name}_past_D``, the commands of the last
-    :math:`D` = ``ceil(max_delay / sampling_time)`` samples: each record starts them at
-    its first command, and they are not fitted (only the first :math:`m + 1` samples see
+    $D$ = ``ceil(max_delay / sampling_time)`` samples: each record starts them at
+    its first command, and they are not fitted (only the first $m + 1$ samples see
     them; the rest would be parameters without influence). ``initial`` is their value in
     the model's ``x0``. ``max_delay`` defaults to eight samples, or four times ``delay``
-    when that is longer; the richer variant (:meth:`richer`), which the loop tries once
+    when that is longer; the richer variant (`richer`), which the loop tries once
     the delay is chosen, doubles it.
 
-    Its derivative in :math:`d` is :math:`(u_{k-m-1} - u_{k-m})/T_s`, the one-sided
+    Its derivative in $d$ is $(u_{k-m-1} - u_{k-m})/T_s$, the one-sided
     derivative at a whole number of samples, so a fit started at a whole sample moves.
     """
 
@@ -92,7 +92,7 @@ class InputDelay(Effect):
 
     @property
     def n_taps(self) -> int:
-        """:math:`D`, the number of past commands the effect keeps."""
+        """$D$, the number of past commands the effect keeps."""
         return max(1, math.ceil(self.max_delay / self.sampling_time - 1e-9))
 
     @property
@@ -124,8 +124,8 @@ class InputDelay(Effect):
         return (_widened_range(u, self.input),) * self.n_taps
 
     def hidden_path(self, u, theta) -> np.ndarray:
-        """The commands before each sample: row :math:`k` holds
-        :math:`u_{k-1}, \\dots, u_{k-D}`, the record's first command before it starts."""
+        """The commands before each sample: row $k$ holds
+        $u_{k-1}, \\dots, u_{k-D}$, the record's first command before it starts."""
         commands = np.asarray(u, float)[:, self.input]
         padded = np.concatenate([np.full(self.n_taps, commands[0]), commands])
         rows = np.arange(commands.size)[:, None] + self.n_taps - np.arange(1, self.n_taps + 1)
@@ -141,7 +141,7 @@ class InputDelay(Effect):
         return u.at[self.input].set(seen), commands[:-1]
 
     def richer(self) -> InputDelay:
-        """The same dead time with twice the reach (:math:`2D` past commands): a delay
+        """The same dead time with twice the reach ($2D$ past commands): a delay
         the fit left at its bound may be longer. Its fit starts at this one's delay."""
         reach = 2 * self.n_taps * self.sampling_time
         return self.replace(max_delay=reach, name=f"{self.name}_longer")

@@ -1,17 +1,17 @@
-r"""Named physical effects that can be added to a :class:`PhysicsModel`.
+r"""Named physical effects that can be added to a [`PhysicsModel`][sk_offwhite.PhysicsModel].
 
 An effect is the explicit, parametrised form of something a residual analysis can point
 at: an overflow (a level capped at a height, the excess spilling elsewhere), a saturation of
-the measured output, a leak, a friction. :func:`augment` returns a new physics model whose
-step and output apply the effects after the declared physics,
+the measured output, a leak, a friction. [`augment`][sk_offwhite.augment] returns a new physics
+model whose step and output apply the effects after the declared physics,
 
-.. math::
+$$
+x_{k+1} = E_m \circ \dots \circ E_1\bigl(f(x_k, u_k; \theta);\ x_k, u_k, \theta_E\bigr),
+\qquad z_k = O_m \circ \dots \circ O_1\bigl(h(x_k, u_k; \theta)\bigr),
+$$
 
-    x_{k+1} = E_m \circ \dots \circ E_1\bigl(f(x_k, u_k; \theta);\ x_k, u_k, \theta_E\bigr),
-    \qquad z_k = O_m \circ \dots \circ O_1\bigl(h(x_k, u_k; \theta)\bigr),
-
-with the effects' own named parameters :math:`\theta_E` appended to :math:`\theta`. Hard
-limits are smoothed, :math:`\mathrm{hinge}_\beta(a) = \mathrm{softplus}(\beta a)/\beta`, so
+with the effects' own named parameters $\theta_E$ appended to $\theta$. Hard
+limits are smoothed, $\mathrm{hinge}_\beta(a) = \mathrm{softplus}(\beta a)/\beta$, so
 the simulation error stays differentiable. Effects are immutable and compared by value, so
 augmented models are valid ``jit`` static arguments and picklable.
 """
@@ -61,14 +61,14 @@ __all__ = [
 
 
 def hinge(a, sharpness: float):
-    r"""Smooth :math:`\max(a, 0)`: :math:`\mathrm{softplus}(\beta a)/\beta`."""
+    r"""Smooth $\max(a, 0)$: $\mathrm{softplus}(\beta a)/\beta$."""
     return jax.nn.softplus(sharpness * a) / sharpness
 
 
 SHARPNESS = 1000.0
-r"""Default sharpness :math:`s` of the rounded corners of the hard input limit, the dead
+r"""Default sharpness $s$ of the rounded corners of the hard input limit, the dead
 zones and the play (relative to the effect's own level or width, so unit-free). A corner
-moves the effect's edge by :math:`\ln 2 / s` of that width: 1.4 % at :math:`s = 50`,
+moves the effect's edge by $\ln 2 / s$ of that width: 1.4 % at $s = 50$,
 0.07 % at 1000. Measured with the closed loop on the generators (seed 0, 2000 samples,
 ``bench_loop_generators.py``): at 50 the servo's play came back at 0.05058 for 0.05 and the
 heated block's limit at 60.03 for 60 (declared parameters within 0.28 % and 0.34 %), and
@@ -88,10 +88,10 @@ def _positive(value: float) -> Parameter:
 
 
 def _beyond(ratio, sharpness: float, one_sided: bool = False):
-    r"""How far ``ratio`` lies beyond :math:`\pm 1`, smoothed and times ``sharpness``:
-    :math:`\mathrm{sp}(s(r - 1)) - \mathrm{sp}(s(-r - 1))`, or its first term alone when
-    ``one_sided`` (divided by :math:`s`, a smooth :math:`\mathrm{sign}(r)\max(|r| - 1, 0)`,
-    resp. :math:`\max(r - 1, 0)`): the dead zones and the hard input limit."""
+    r"""How far ``ratio`` lies beyond $\pm 1$, smoothed and times ``sharpness``:
+    $\mathrm{sp}(s(r - 1)) - \mathrm{sp}(s(-r - 1))$, or its first term alone when
+    ``one_sided`` (divided by $s$, a smooth $\mathrm{sign}(r)\max(|r| - 1, 0)$,
+    resp. $\max(r - 1, 0)$): the dead zones and the hard input limit."""
     passed = jax.nn.softplus(sharpness * (ratio - 1.0))
     if one_sided:
         return passed
@@ -111,7 +111,7 @@ def _corner_parameters(effect) -> dict[str, Parameter]:
 
 def _widened_range(u, index: int) -> tuple[float, float]:
     r"""Column ``index`` of the record ``u``'s range widened by itself on each side,
-    :math:`[\min u - R,\ \max u + R]`, :math:`R = \max u - \min u` (unbounded for a
+    $[\min u - R,\ \max u + R]$, $R = \max u - \min u$ (unbounded for a
     constant column): the bounds of a hidden state that follows an input."""
     command = np.asarray(u, float)[:, index]
     low, high = float(command.min()), float(command.max())
@@ -121,11 +121,11 @@ def _widened_range(u, index: int) -> tuple[float, float]:
 
 
 def lag_coefficients(ratio, xp=jnp):
-    r""":math:`\alpha = 1 - e^{-T_s/\tau}` and :math:`\beta = 1 - \frac{\tau}{T_s}\,\alpha`
-    of a first-order lag of time constant :math:`\tau` over a sample :math:`T_s`, from
-    ``ratio`` :math:`= \tau / T_s`, in the array module ``xp``: the share of the gap to
+    r"""$\alpha = 1 - e^{-T_s/\tau}$ and $\beta = 1 - \frac{\tau}{T_s}\,\alpha$
+    of a first-order lag of time constant $\tau$ over a sample $T_s$, from
+    ``ratio`` $= \tau / T_s$, in the array module ``xp``: the share of the gap to
     its input that the lag closes over the sample, and the share its mean over the sample
-    closes (:class:`InputLag`, :class:`~sk_offwhite.SensorLag`)."""
+    closes ([`InputLag`][sk_offwhite.InputLag], [`SensorLag`][sk_offwhite.SensorLag])."""
     alpha = -xp.expm1(-1.0 / ratio)
     return alpha, 1.0 - ratio * alpha
 
@@ -147,8 +147,8 @@ class Effect:
     """Base class: an effect acting on the state update and/or the output map.
 
     Subclasses set ``name`` and ``target`` (``"input"``, ``"state"`` or ``"output"``) and
-    implement :meth:`parameters` and one of :meth:`apply_input` (before the declared step),
-    :meth:`apply_state` (after it) or :meth:`apply_output`.
+    implement `parameters` and one of `apply_input` (before the declared step),
+    `apply_state` (after it) or `apply_output`.
     """
 
     target = "state"
@@ -156,18 +156,18 @@ class Effect:
     """Whether the effect's parameters replace declared, relaxable ones of the same name."""
     reads_output = False
     """Whether an output effect acts on the final reading: after every other output effect,
-    whatever the order the effects are given in (:class:`SensorStep`)."""
+    whatever the order the effects are given in ([`SensorStep`][sk_offwhite.SensorStep])."""
     hidden_states: tuple[str, ...] = ()
-    """Names of the hidden states the effect carries (see :mod:`sk_offwhite._hidden`)."""
+    """Names of the hidden states the effect carries (see `sk_offwhite._hidden`)."""
     follows_output = False
     """Whether the hidden states follow the declared output map rather than the input
-    (:meth:`follow` instead of :meth:`advance`; a slow sensor)."""
+    (`follow` instead of `advance`; a slow sensor)."""
     hidden_free = True
     """Whether the hidden states' initial values are estimated with the initial state;
-    ``False``: each record starts them where :meth:`hidden_start` puts them (the past
-    commands of a dead time, which only the record's first samples see), and :meth:`advance`
+    ``False``: each record starts them where `hidden_start` puts them (the past
+    commands of a dead time, which only the record's first samples see), and `advance`
     updates them from the inputs alone, so that every later sample's values are known
-    (:meth:`hidden_path`) and a shooting window starts them there rather than fitting them."""
+    (`hidden_path`) and a shooting window starts them there rather than fitting them."""
 
     def parameters(self) -> dict[str, Parameter]:
         """The effect's own parameters, with initial values and bounds."""
@@ -191,13 +191,13 @@ class Effect:
         return u, hidden
 
     def follow(self, hidden, now, after, theta):
-        """For an effect that :attr:`follows_output`: the next hidden states from these
-        and the declared outputs at samples :math:`k` (``now``) and :math:`k + 1`
+        """For an effect that `follows_output`: the next hidden states from these
+        and the declared outputs at samples $k$ (``now``) and $k + 1$
         (``after``)."""
         return hidden
 
     def follow_off(self, hidden, now, after):
-        """:meth:`follow` of the effect switched off (:class:`Switched`): hidden states
+        """`follow` of the effect switched off ([`Switched`][sk_offwhite.Switched]): hidden states
         whose reading is the declared output (the hidden states themselves by default)."""
         return hidden
 
@@ -222,9 +222,9 @@ class Effect:
         return ((-np.inf, np.inf),) * len(self.hidden_states)
 
     def hidden_path(self, u, theta) -> np.ndarray:
-        """For an effect that fixes its hidden states (:attr:`hidden_free` false): their
+        """For an effect that fixes its hidden states (`hidden_free` false): their
         values at every sample of a record with inputs ``u`` (NumPy, one row per sample),
-        started by :meth:`hidden_start` and moved by :meth:`advance` (one ``lax.scan`` in
+        started by `hidden_start` and moved by `advance` (one ``lax.scan`` in
         double precision; ``theta`` the parameters by name). An effect overrides it where a
         closed form is cheaper."""
         start = np.asarray(self.hidden_start(self.hidden_initial(), u[0], theta), float)
@@ -252,16 +252,17 @@ class Effect:
         """The next variant of the same mechanism with one more degree of freedom, which
         holds this effect as a special case (a calibration of one degree more), or
         ``None`` (the default: no such variant). The loop tries it in place of the effect
-        once the effect is chosen, started from :meth:`richer_start`."""
+        once the effect is chosen, started from `richer_start`."""
         return None
 
     def richer_start(self, values: dict) -> dict:
-        """The start of :meth:`richer`'s parameters from this effect's fitted ``values``
+        """The start of `richer`'s parameters from this effect's fitted ``values``
         (by parameter name; any type): where the richer variant reproduces this effect,
         each of this effect's parameters carried into the richer one's of the same field
         (``{name}_c0`` into ``{richer name}_c0``), its extra parameters at their declared
         starts (a parameter the fit drove onto a flat direction it cannot leave may
-        restart instead: see :class:`Friction`); empty when there is no richer variant."""
+        restart instead: see [`Friction`][sk_offwhite.Friction]); empty when there is no richer
+        variant."""
         richer = self.richer()
         if richer is None:
             return {}
@@ -293,13 +294,13 @@ class Effect:
 
 class RelaxedLaw(Effect):
     r"""A constant of a declared law freed: the fixed, relaxable parameter ``parameter``
-    (see :class:`~sk_offwhite.Parameter`) becomes a fitted one, started at its declared
+    (see [`Parameter`][sk_offwhite.Parameter]) becomes a fitted one, started at its declared
     value and kept within its bounds.
 
     The step and output map are unchanged; only the parameter's status changes, so a model
     with the relaxation shares the declared model's compiled programs. Torricelli's
-    outflow :math:`k\sqrt{x} = k x^{1/2}` written with a relaxable exponent ``a`` becomes
-    :math:`k x^{a}`, with :math:`a` fitted.
+    outflow $k\sqrt{x} = k x^{1/2}$ written with a relaxable exponent ``a`` becomes
+    $k x^{a}$, with $a$ fitted.
     """
 
     target = "law"
@@ -320,7 +321,7 @@ class RelaxedLaw(Effect):
 
 
 def relaxations(physics: PhysicsModel) -> list[RelaxedLaw]:
-    """One :class:`RelaxedLaw` per fixed, relaxable parameter of ``physics``."""
+    """One [`RelaxedLaw`][sk_offwhite.RelaxedLaw] per fixed, relaxable parameter of ``physics``."""
     return [
         RelaxedLaw(name, spec.value, spec.bounds)
         for name, spec in physics.parameters.items()
@@ -331,18 +332,18 @@ def relaxations(physics: PhysicsModel) -> list[RelaxedLaw]:
 class Overflow(Effect):
     r"""State ``state`` cannot exceed a level; a fraction of the excess reaches ``sink``.
 
-    .. math::
+    $$
+    o = \mathrm{hinge}_\beta(x^+_s - h), \quad x^+_s \leftarrow x^+_s - o, \quad
+    x^+_{d} \leftarrow x^+_{d} + \rho\, o,
+    $$
 
-        o = \mathrm{hinge}_\beta(x^+_s - h), \quad x^+_s \leftarrow x^+_s - o, \quad
-        x^+_{d} \leftarrow x^+_{d} + \rho\, o,
-
-    with parameters ``{name}_level`` (:math:`h`) and, with a sink, ``{name}_fraction``
-    (:math:`\rho \in [0, 1]`; the rest leaves the system). The hinge is rounded over
-    ``corner`` (:math:`c`, in the state's units):
-    :math:`\mathrm{hinge}(a) = c\,\mathrm{softplus}(a / c)`, so :math:`\beta = 1/c`. The
-    loop sets :math:`c` to 2.5 % of the state's standard deviation on the record, so the
+    with parameters ``{name}_level`` ($h$) and, with a sink, ``{name}_fraction``
+    ($\rho \in [0, 1]$; the rest leaves the system). The hinge is rounded over
+    ``corner`` ($c$, in the state's units):
+    $\mathrm{hinge}(a) = c\,\mathrm{softplus}(a / c)$, so $\beta = 1/c$. The
+    loop sets $c$ to 2.5 % of the state's standard deviation on the record, so the
     rounding follows the data's units. With ``fit_corner=True`` the corner is a parameter,
-    ``{name}_corner``, started at ``corner`` and kept above :data:`RELATIVE_FLOOR` of it:
+    ``{name}_corner``, started at ``corner`` and kept above `RELATIVE_FLOOR` of it:
     the data decide how sharp the overflow is (a weir spills gradually, a rim at once).
     A corner driven to its floor leaves the cost kinked there and the Hessian singular in
     it (infinite standard errors): start it from a fitted model, and read it as "sharp".
@@ -396,11 +397,11 @@ class Overflow(Effect):
 class OutputSaturation(Effect):
     r"""Output ``output`` saturates at an upper level.
 
-    :math:`z \leftarrow z - \mathrm{hinge}_\beta(z - z_{max})`;
-    parameter ``{name}_level`` (:math:`z_{max}`). The hinge is rounded over ``corner``
-    (in the output's units, :math:`\beta = 1/c`; fitted as ``{name}_corner`` with
-    ``fit_corner=True``; see :class:`Overflow`); the loop sets it to 2.5 % of the simulated
-    output's standard deviation.
+    $z \leftarrow z - \mathrm{hinge}_\beta(z - z_{max})$;
+    parameter ``{name}_level`` ($z_{max}$). The hinge is rounded over ``corner``
+    (in the output's units, $\beta = 1/c$; fitted as ``{name}_corner`` with
+    ``fit_corner=True``; see [`Overflow`][sk_offwhite.Overflow]); the loop sets it to 2.5 % of the
+    simulated output's standard deviation.
     """
 
     target = "output"
@@ -433,22 +434,22 @@ class InputSaturation(Effect):
     r"""Input ``input`` reaches the physics through a saturating actuator.
 
     Two shapes, applied before the declared step, with parameter ``{name}_level``
-    (:math:`u_{max} > 0`, kept above :data:`RELATIVE_FLOOR` of its start):
+    ($u_{max} > 0$, kept above `RELATIVE_FLOOR` of its start):
 
-    * ``shape="tanh"``: :math:`u_j \leftarrow u_{max} \tanh(u_j / u_{max})`, a soft
-      saturation (already 8 % below :math:`u_j` at half the level);
-    * ``shape="clip"``: a hard limit at :math:`\pm u_{max}` with rounded corners,
+    * ``shape="tanh"``: $u_j \leftarrow u_{max} \tanh(u_j / u_{max})$, a soft
+      saturation (already 8 % below $u_j$ at half the level);
+    * ``shape="clip"``: a hard limit at $\pm u_{max}$ with rounded corners,
 
-      .. math::
+      $$
+      u_j \leftarrow u_j - \frac{u_{max}}{s}\left[\mathrm{sp}\big(s(u_j/u_{max} - 1)\big)
+            - \mathrm{sp}\big(s(-u_j/u_{max} - 1)\big)\right],
+      $$
 
-          u_j \leftarrow u_j - \frac{u_{max}}{s}\left[\mathrm{sp}\big(s(u_j/u_{max} - 1)\big)
-                - \mathrm{sp}\big(s(-u_j/u_{max} - 1)\big)\right],
-
-      (:math:`\mathrm{sp}` the softplus, :math:`s` = ``sharpness``, relative to
-      :math:`u_{max}` so that the rounding follows the input's units): the input passes
+      ($\mathrm{sp}$ the softplus, $s$ = ``sharpness``, relative to
+      $u_{max}$ so that the rounding follows the input's units): the input passes
       unchanged below the level (a heater, a valve, a drive at its current limit).
 
-    Both shapes are one mechanism (:attr:`mechanism`): a set holds at most one of them.
+    Both shapes are one mechanism (`mechanism`): a set holds at most one of them.
     """
 
     target = "input"
@@ -492,11 +493,11 @@ class InputSaturation(Effect):
 
 
 class OutputOffset(Effect):
-    r"""The measured output reads the model output plus a constant: :math:`z \leftarrow z + b`.
+    r"""The measured output reads the model output plus a constant: $z \leftarrow z + b$.
 
     An uncalibrated sensor whose zero is not the physical zero of the state it measures;
-    the dynamics then act on the physical level :math:`z - b`. Parameter ``{name}_offset``
-    (:math:`b`).
+    the dynamics then act on the physical level $z - b$. Parameter ``{name}_offset``
+    ($b$).
     """
 
     target = "output"
@@ -520,17 +521,17 @@ class SensorCalibration(Effect):
     An uncalibrated sensor whose reading is not linear in the quantity it measures (a
     level sensor, a thermocouple, a strain gauge):
 
-    .. math::
+    $$
+    z \leftarrow z + \sum_{k=0}^{d} c_k\,\xi^k, \qquad
+    \xi = \frac{z - m}{s},
+    $$
 
-        z \leftarrow z + \sum_{k=0}^{d} c_k\,\xi^k, \qquad
-        \xi = \frac{z - m}{s},
-
-    with parameters ``{name}_c0`` ... ``{name}_c{d}`` (:math:`c_k`, in the output's units,
-    starting at 0: the declared output map). The centre :math:`m` and scale :math:`s`
+    with parameters ``{name}_c0`` ... ``{name}_c{d}`` ($c_k$, in the output's units,
+    starting at 0: the declared output map). The centre $m$ and scale $s$
     are fixed numbers taken from the data (the loop uses the mean and standard deviation
-    of the simulated output), so :math:`\xi` is dimensionless and the fitted curve does
-    not depend on the units of the data. With :math:`d = 0` this is
-    :class:`OutputOffset`; :math:`c_1` is a gain error, :math:`c_2` a curvature.
+    of the simulated output), so $\xi$ is dimensionless and the fitted curve does
+    not depend on the units of the data. With $d = 0$ this is
+    [`OutputOffset`][sk_offwhite.OutputOffset]; $c_1$ is a gain error, $c_2$ a curvature.
     """
 
     target = "output"
@@ -567,9 +568,9 @@ class SensorCalibration(Effect):
         return f"sensor calibration of output {self.output}"
 
     def richer(self) -> SensorCalibration:
-        """The calibration of degree :math:`d + 1` (named ``{base}_degree{d+1}``, ``base``
-        the name without an earlier ``_degree`` suffix), on the same :math:`m` and
-        :math:`s`."""
+        """The calibration of degree $d + 1$ (named ``{base}_degree{d+1}``, ``base``
+        the name without an earlier ``_degree`` suffix), on the same $m$ and
+        $s$."""
         base = re.sub(r"_degree\d+$", "", self.name)
         return self.replace(degree=self.degree + 1, name=f"{base}_degree{self.degree + 1}")
 
@@ -580,24 +581,24 @@ class SensorStep(Effect):
     A sensor whose reading is discontinuous (a seam in a capacitive level strip, a worn
     spot on a potentiometer) jumps each time the quantity passes one value:
 
-    .. math::
+    $$
+    z \leftarrow z + H\,\sigma\!\left(\frac{z - L}{c}\right),
+    $$
 
-        z \leftarrow z + H\,\sigma\!\left(\frac{z - L}{c}\right),
-
-    with :math:`\sigma` the logistic function and parameters ``{name}_level``
-    (:math:`L`) and ``{name}_height`` (:math:`H`, positive when the reading steps up as
+    with $\sigma$ the logistic function and parameters ``{name}_level``
+    ($L$) and ``{name}_height`` ($H$, positive when the reading steps up as
     the level rises), both in the output's units: below the level the reading is what
-    the rest of the model says, above it :math:`H` more (an offset of the whole reading
-    is another effect, :class:`OutputOffset`). The step is rounded over ``corner``
-    (:math:`c`, output units; fitted as ``{name}_corner`` with ``fit_corner=True``, see
-    :class:`Overflow`); the loop sets it to 2.5 % of the simulated output's standard
-    deviation, starts :math:`L` and :math:`H` from the measured jumps
-    (:func:`~sk_offwhite.diagnose.output_jumps`) and keeps :math:`L` within
+    the rest of the model says, above it $H$ more (an offset of the whole reading
+    is another effect, [`OutputOffset`][sk_offwhite.OutputOffset]). The step is rounded over
+    ``corner`` ($c$, output units; fitted as ``{name}_corner`` with ``fit_corner=True``, see
+    [`Overflow`][sk_offwhite.Overflow]); the loop sets it to 2.5 % of the simulated output's
+    standard deviation, starts $L$ and $H$ from the measured jumps
+    ([`output_jumps`][sk_offwhite.diagnose.output_jumps]) and keeps $L$ within
     ``level_bounds``, the measured values the reading jumped across: the data place the
     step, and a fit may not move it to where it would stand for some other misfit of the
     model. It acts on the final reading, after
-    every other output effect (:attr:`Effect.reads_output`), so that :math:`L` is a
-    measured value.
+    every other output effect ([`Effect.reads_output`][sk_offwhite.Effect.reads_output]), so that
+    $L$ is a measured value.
     """
 
     target = "output"
@@ -647,16 +648,16 @@ class SensorStep(Effect):
 
 
 class AdditiveEffect(Effect):
-    r"""A term :math:`g(x, u; \theta_E)` added to the equation of state ``state``.
+    r"""A term $g(x, u; \theta_E)$ added to the equation of state ``state``.
 
-    ``basis`` (when the term is :math:`p\,b(x, u)`, linear in its first parameter ``p``,
+    ``basis`` (when the term is $p\,b(x, u)$, linear in its first parameter ``p``,
     the others held) lets the loop start ``p`` from a least-squares fit to a correction.
 
-    For a physics built with :meth:`PhysicsModel.from_ode` the term is added to the
-    right-hand side, :math:`\dot x_s = r_s(x, u) + g`, and integrated with it, so its
+    For a physics built with [`PhysicsModel.from_ode`][sk_offwhite.PhysicsModel.from_ode] the term
+    is added to the right-hand side, $\dot x_s = r_s(x, u) + g$, and integrated with it, so its
     parameters are rates in the state's units per unit time (per second when the sampling
-    time is in seconds); for a discrete-time physics it is added to :math:`x^+_s` (an
-    increment per sample). Subclasses implement :meth:`term`.
+    time is in seconds); for a discrete-time physics it is added to $x^+_s$ (an
+    increment per sample). Subclasses implement `term`.
     """
 
     state: int
@@ -666,7 +667,7 @@ class AdditiveEffect(Effect):
         raise NotImplementedError
 
     def basis(self, x, u):
-        r""":math:`b(x, u)` of a term :math:`p\,b(x, u)` (numpy rows), else ``None``."""
+        r"""$b(x, u)$ of a term $p\,b(x, u)$ (numpy rows), else ``None``."""
         return None
 
     def apply_state(self, x, u, x_next, theta):
@@ -674,9 +675,9 @@ class AdditiveEffect(Effect):
 
 
 class Leak(AdditiveEffect):
-    r"""A loss proportional to the state: :math:`g = -c\, x_s`.
+    r"""A loss proportional to the state: $g = -c\, x_s$.
 
-    Parameter ``{name}_rate`` (:math:`c \ge 0`).
+    Parameter ``{name}_rate`` ($c \ge 0$).
     """
 
     def __init__(self, state: int, *, rate: float = 0.01, name: str = "leak"):
@@ -698,20 +699,20 @@ class Leak(AdditiveEffect):
 class PowerLoss(AdditiveEffect):
     r"""A loss growing with a fitted power of a state's excess over a level:
 
-    .. math::
+    $$
+    g = -c\,\Delta \left(\frac{|\Delta|}{\Delta_r}\right)^{a - 1},
+    \qquad \Delta = x_s - \ell,
+    $$
 
-        g = -c\,\Delta \left(\frac{|\Delta|}{\Delta_r}\right)^{a - 1},
-        \qquad \Delta = x_s - \ell,
-
-    on top of the declared loss: a heat loss by convection (:math:`a` = 5/4 or 4/3), or
+    on top of the declared loss: a heat loss by convection ($a$ = 5/4 or 4/3), or
     the curvature of a radiative one, where the physics declares Newton's law of cooling,
     whose linear part the declared conductance keeps. Parameters ``{name}_rate``
-    (:math:`c \ge 0`: the loss is :math:`c\,\Delta_r` at :math:`|\Delta| = \Delta_r`
-    whatever :math:`a`),
-    ``{name}_level`` (:math:`\ell`, in the state's units) and ``{name}_exponent``
-    (:math:`a`, in :data:`EXPONENT_BOUNDS`, started at 2: at :math:`a = 1` the loss is
+    ($c \ge 0$: the loss is $c\,\Delta_r$ at $|\Delta| = \Delta_r$
+    whatever $a$),
+    ``{name}_level`` ($\ell$, in the state's units) and ``{name}_exponent``
+    ($a$, in `EXPONENT_BOUNDS`, started at 2: at $a = 1$ the loss is
     linear, which the declared one already is).
-    ``reference`` (:math:`\Delta_r > 0`, the loop takes the state's RMS deviation on the
+    ``reference`` ($\Delta_r > 0$, the loop takes the state's RMS deviation on the
     record) makes the rate convert with the state's units alone.
     """
 
@@ -754,33 +755,33 @@ class PowerLoss(AdditiveEffect):
 class Friction(AdditiveEffect):
     r"""Coulomb (and optionally Stribeck) friction braking a velocity, with a smooth sign.
 
-    .. math::
+    $$
+    g = -\bigl(F_c + F_s e^{-(v/v_s)^2}\bigr) \tanh(v / w),
+    $$
 
-        g = -\bigl(F_c + F_s e^{-(v/v_s)^2}\bigr) \tanh(v / w),
-
-    :math:`v = x_s` (or ``x[velocity]`` when the friction acts in another state's
-    equation). Parameters ``{name}_coulomb`` (:math:`F_c \ge 0`), ``{name}_width``
-    (:math:`w > 0`, in the velocity's units: how sharp the sign is; the loop starts it at
+    $v = x_s$ (or ``x[velocity]`` when the friction acts in another state's
+    equation). Parameters ``{name}_coulomb`` ($F_c \ge 0$), ``{name}_width``
+    ($w > 0$, in the velocity's units: how sharp the sign is; the loop starts it at
     1 % of the velocity's RMS, so it follows the data's units) and, when
-    ``stribeck_velocity`` (:math:`v_s`) is given, ``{name}_stribeck``
-    (:math:`F_s \ge 0`). ``fit_width=False`` keeps :math:`w` fixed; with
-    ``fit_stribeck_velocity=True`` :math:`v_s` is fitted too (``{name}_stribeck_velocity``,
+    ``stribeck_velocity`` ($v_s$) is given, ``{name}_stribeck``
+    ($F_s \ge 0$). ``fit_width=False`` keeps $w$ fixed; with
+    ``fit_stribeck_velocity=True`` $v_s$ is fitted too (``{name}_stribeck_velocity``,
     above ``min_width``), from ``stribeck_velocity``. The fitted width stays
     above ``min_width`` (default: 1 % of the starting width): at a width far below every
-    speed on the record the sign is flat in :math:`w`, and a fit that overshoots there
+    speed on the record the sign is flat in $w$, and a fit that overshoots there
     cannot come back (measured on a drive: stuck at the old floor of 1e-12 with a 2 %
     worse fit, from starts 10x too wide or a Coulomb level 300x too small).
 
-    The richer variant of a Coulomb friction (:meth:`richer`) is the Stribeck friction
-    whose level :math:`F_s` (from 0) and velocity :math:`v_s` (from :data:`STRIBECK_START`
-    times the starting width: half the velocity's RMS as the loop starts it) are both
-    fitted: at :math:`F_s = 0` it is the Coulomb friction, and :math:`v_s` does not move
-    until :math:`F_s` does. A broad start is narrowed by the fit; a narrow one is not
-    widened (measured on :func:`~sk_offwhite.datasets.make_friction_oscillator` with
-    ``stribeck=0.5``, :math:`v_s = 0.3`, velocity RMS 1.46, the Coulomb fit's width
-    0.0045 carried: from 0.145 the fit ended at
-    :math:`F_s = 0.0001` with validation RMSE 0.0223, the Coulomb friction's; from 0.3,
-    0.6, 0.725 and 1.0 at :math:`F_s = 0.478`, :math:`v_s = 0.303`, validation 0.00497,
+    The richer variant of a Coulomb friction (`richer`) is the Stribeck friction
+    whose level $F_s$ (from 0) and velocity $v_s$ (from
+    `STRIBECK_START` times the starting width: half the
+    velocity's RMS as the loop starts it) are both fitted: at $F_s = 0$ it is the Coulomb friction,
+    and $v_s$ does not move until $F_s$ does. A broad start is narrowed by the fit; a narrow one is
+    not widened (measured on
+    [`make_friction_oscillator`][sk_offwhite.datasets.make_friction_oscillator] with
+    ``stribeck=0.5``, $v_s = 0.3$, velocity RMS 1.46, the Coulomb fit's width 0.0045 carried: from
+    0.145 the fit ended at $F_s = 0.0001$ with validation RMSE 0.0223, the Coulomb friction's; from
+    0.3, 0.6, 0.725 and 1.0 at $F_s = 0.478$, $v_s = 0.303$, validation 0.00497,
     the sensor's noise).
     """
 
@@ -863,7 +864,7 @@ class Friction(AdditiveEffect):
     def richer_start(self, values: dict) -> dict:
         """The Coulomb level carried over, the Stribeck level at 0; the width carried over
         unless the fit made it sharper than it started, where it restarts (a sign far
-        sharper than every speed on the record is flat in :math:`w`: from there the
+        sharper than every speed on the record is flat in $w$: from there the
         Stribeck fit could not smooth it again)."""
         start = super().richer_start(values)
         width = values[f"{self.name}_width"]
@@ -874,7 +875,7 @@ class Friction(AdditiveEffect):
 
 
 class Bias(AdditiveEffect):
-    r"""A constant in the equation of state ``state``: :math:`g = b` (a force offset, a
+    r"""A constant in the equation of state ``state``: $g = b$ (a force offset, a
     constant inflow, a heat source). Parameter ``{name}_value``."""
 
     def __init__(self, state: int, *, value: float = 0.0, name: str = "bias"):
@@ -894,11 +895,11 @@ class Bias(AdditiveEffect):
 
 
 def signed_power(v, reference: float, base: int, exponent, xp=jnp):
-    r""":math:`v|v|^{b-1} (|v|/v_r)^{a-b}`, :math:`b` = ``base``, :math:`a` = ``exponent``,
-    :math:`v_r` = ``reference``: the signed power :math:`a` of :math:`v` whose size at
-    :math:`|v| = v_r` does not depend on :math:`a`, and which is :math:`v|v|^{b-1}` at
-    :math:`a = b`. Zero at :math:`v = 0`, where the power of the zero ratio is left out,
-    so that no :math:`\log 0` reaches the derivative in :math:`a` (``xp``: ``jax.numpy``,
+    r"""$v|v|^{b-1} (|v|/v_r)^{a-b}$, $b$ = ``base``, $a$ = ``exponent``,
+    $v_r$ = ``reference``: the signed power $a$ of $v$ whose size at
+    $|v| = v_r$ does not depend on $a$, and which is $v|v|^{b-1}$ at
+    $a = b$. Zero at $v = 0$, where the power of the zero ratio is left out,
+    so that no $\log 0$ reaches the derivative in $a$ (``xp``: ``jax.numpy``,
     or ``numpy`` for the basis)."""
     ratio = xp.abs(v) / reference
     moving = ratio > 0
@@ -921,13 +922,13 @@ def _check_exponent(exponent: float, bounds: tuple[float, float]) -> float:
 
 
 class Stiffness(AdditiveEffect):
-    r"""A polynomial restoring term: :math:`g = -k\, q |q|^{p-1}` with :math:`q = x_{position}`.
+    r"""A polynomial restoring term: $g = -k\, q |q|^{p-1}$ with $q = x_{position}$.
 
-    ``power`` :math:`p \ge 2` (3: a hardening / softening cubic spring, :math:`k > 0`
-    hardens). Parameter ``{name}_coefficient`` (:math:`k`, either sign). ``reference``
-    (:math:`q_r > 0`, in the position's units; the loop takes the position's RMS on the
-    record) is the scale at which the richer variant, :class:`PowerStiffness`, keeps
-    :math:`k`'s meaning.
+    ``power`` $p \ge 2$ (3: a hardening / softening cubic spring, $k > 0$
+    hardens). Parameter ``{name}_coefficient`` ($k$, either sign). ``reference``
+    ($q_r > 0$, in the position's units; the loop takes the position's RMS on the
+    record) is the scale at which the richer variant,
+    [`PowerStiffness`][sk_offwhite.PowerStiffness], keeps $k$'s meaning.
     """
 
     def __init__(
@@ -969,8 +970,8 @@ class Stiffness(AdditiveEffect):
         return f"stiffness of state {self.position} in state {self.state}"
 
     def richer(self) -> PowerStiffness:
-        """The spring of fitted exponent (:class:`PowerStiffness`, named ``{name}_power``),
-        started at ``power``, on the same reference position."""
+        """The spring of fitted exponent ([`PowerStiffness`][sk_offwhite.PowerStiffness], named
+        ``{name}_power``), started at ``power``, on the same reference position."""
         return PowerStiffness(
             self.state, self.position, power=self.power, reference=self.reference,
             name=f"{self.name}_power",
@@ -980,18 +981,18 @@ class Stiffness(AdditiveEffect):
 class PowerStiffness(Stiffness):
     r"""A restoring term of fitted exponent:
 
-    .. math::
+    $$
+    g = -k\, q|q|^{p-1} \left(\frac{|q|}{q_r}\right)^{a - p}
+      = -k\, q_r^{p - a}\, \mathrm{sign}(q) |q|^{a},
+    $$
 
-        g = -k\, q|q|^{p-1} \left(\frac{|q|}{q_r}\right)^{a - p}
-          = -k\, q_r^{p - a}\, \mathrm{sign}(q) |q|^{a},
-
-    :math:`q = x_{position}`. Parameters ``{name}_coefficient`` (:math:`k`, either sign,
-    in the units of :class:`Stiffness`'s of power :math:`p`) and ``{name}_exponent``
-    (:math:`a` in :math:`[1, p + 2]`, starting at ``power``). At :math:`a = p` it
-    is the spring of power :math:`p`. The fixed reference position :math:`q_r` (the loop
-    takes the position's RMS) makes :math:`k` the term's size at a typical deflection
-    whatever :math:`a`, so the fit of :math:`a` does not trade off against :math:`k`
-    through the units of :math:`q`.
+    $q = x_{position}$. Parameters ``{name}_coefficient`` ($k$, either sign,
+    in the units of [`Stiffness`][sk_offwhite.Stiffness]'s of power $p$) and ``{name}_exponent``
+    ($a$ in $[1, p + 2]$, starting at ``power``). At $a = p$ it
+    is the spring of power $p$. The fixed reference position $q_r$ (the loop
+    takes the position's RMS) makes $k$ the term's size at a typical deflection
+    whatever $a$, so the fit of $a$ does not trade off against $k$
+    through the units of $q$.
     """
 
     def __init__(
@@ -1014,7 +1015,7 @@ class PowerStiffness(Stiffness):
 
     @property
     def exponent_bounds(self) -> tuple[float, float]:
-        """:math:`[1, p + 2]`: from a linear spring to two powers beyond the declared one."""
+        """$[1, p + 2]$: from a linear spring to two powers beyond the declared one."""
         return (1.0, self.power + 2.0)
 
     def parameters(self) -> dict[str, Parameter]:
@@ -1046,11 +1047,11 @@ class PowerStiffness(Stiffness):
 
 
 class QuadraticDrag(AdditiveEffect):
-    r"""Drag growing with the square of a velocity: :math:`g = -c\, v|v|`, :math:`v = x_s`.
+    r"""Drag growing with the square of a velocity: $g = -c\, v|v|$, $v = x_s$.
 
-    Parameter ``{name}_coefficient`` (:math:`c \ge 0`). ``reference`` (:math:`v_r > 0`, in
+    Parameter ``{name}_coefficient`` ($c \ge 0$). ``reference`` ($v_r > 0$, in
     the velocity's units; the loop takes the velocity's RMS on the record) is the scale at
-    which the richer variant, :class:`PowerDrag`, keeps :math:`c`'s meaning.
+    which the richer variant, [`PowerDrag`][sk_offwhite.PowerDrag], keeps $c$'s meaning.
     """
 
     def __init__(
@@ -1079,26 +1080,26 @@ class QuadraticDrag(AdditiveEffect):
         return f"drag of state {self.state}"
 
     def richer(self) -> PowerDrag:
-        """The drag of fitted exponent (:class:`PowerDrag`, named ``{name}_power``) on the
-        same reference velocity."""
+        """The drag of fitted exponent ([`PowerDrag`][sk_offwhite.PowerDrag], named
+        ``{name}_power``) on the same reference velocity."""
         return PowerDrag(self.state, reference=self.reference, name=f"{self.name}_power")
 
 
 class PowerDrag(QuadraticDrag):
     r"""Drag growing with a fitted power of a velocity:
 
-    .. math::
+    $$
+    g = -c\, v|v| \left(\frac{|v|}{v_r}\right)^{a - 2}
+      = -c\, v_r^{2 - a}\, \mathrm{sign}(v) |v|^{a},
+    $$
 
-        g = -c\, v|v| \left(\frac{|v|}{v_r}\right)^{a - 2}
-          = -c\, v_r^{2 - a}\, \mathrm{sign}(v) |v|^{a},
-
-    :math:`v = x_s`. Parameters ``{name}_coefficient`` (:math:`c \ge 0`, in the units of
-    :class:`QuadraticDrag`'s) and ``{name}_exponent`` (:math:`a`, in :data:`EXPONENT_BOUNDS`,
-    starting at ``exponent``). At :math:`a = 2` it is the quadratic drag; :math:`a = 1` a
+    $v = x_s$. Parameters ``{name}_coefficient`` ($c \ge 0$, in the units of
+    [`QuadraticDrag`][sk_offwhite.QuadraticDrag]'s) and ``{name}_exponent`` ($a$, in
+    `EXPONENT_BOUNDS`, starting at ``exponent``). At $a = 2$ it is the quadratic drag; $a = 1$ a
     viscous one; between them the drag of a flow neither laminar nor turbulent. The fixed
-    reference velocity :math:`v_r` (the loop takes the velocity's RMS) makes :math:`c` the
-    drag's size at a typical speed whatever :math:`a`, so the fit of :math:`a` does not
-    trade off against :math:`c` through the units of :math:`v`.
+    reference velocity $v_r$ (the loop takes the velocity's RMS) makes $c$ the
+    drag's size at a typical speed whatever $a$, so the fit of $a$ does not
+    trade off against $c$ through the units of $v$.
     """
 
     EXPONENT_BOUNDS = (1.0, 3.0)
@@ -1138,12 +1139,12 @@ class PowerDrag(QuadraticDrag):
 
 
 class DeadZone(Effect):
-    r"""Input ``input`` acts only beyond a dead zone of half-width :math:`w`.
+    r"""Input ``input`` acts only beyond a dead zone of half-width $w$.
 
-    :math:`u_j \leftarrow w\,[\mathrm{sp}(s(u_j/w - 1)) - \mathrm{sp}(s(-u_j/w - 1))]/s`,
-    a smooth :math:`\mathrm{sign}(u)\max(|u| - w, 0)` (:math:`\mathrm{sp}` the softplus,
-    :math:`s` = ``sharpness``, relative to :math:`w`, so the smoothing follows the input's
-    units). Parameter ``{name}_width`` (:math:`w > 0`, kept above :data:`RELATIVE_FLOOR`
+    $u_j \leftarrow w\,[\mathrm{sp}(s(u_j/w - 1)) - \mathrm{sp}(s(-u_j/w - 1))]/s$,
+    a smooth $\mathrm{sign}(u)\max(|u| - w, 0)$ ($\mathrm{sp}$ the softplus,
+    $s$ = ``sharpness``, relative to $w$, so the smoothing follows the input's
+    units). Parameter ``{name}_width`` ($w > 0$, kept above `RELATIVE_FLOOR`
     of its start, as every positive width of this module).
     """
 
@@ -1172,21 +1173,21 @@ class DeadZone(Effect):
 
 class DifferenceDeadZone(Effect):
     r"""Input ``input`` drives the physics through its difference with state ``state``,
-    and that difference acts only beyond a threshold :math:`w`.
+    and that difference acts only beyond a threshold $w$.
 
-    With the drive :math:`d = u_j - x_i` (both in the same units: a source and a capacitor
+    With the drive $d = u_j - x_i$ (both in the same units: a source and a capacitor
     voltage, a commanded and a measured position, a supply and a tank level), the declared
-    step sees :math:`u_j \leftarrow x_i + g(d)` in place of :math:`u_j`, so every term in
-    :math:`u_j - x_i` becomes :math:`g(d)`:
+    step sees $u_j \leftarrow x_i + g(d)$ in place of $u_j$, so every term in
+    $u_j - x_i$ becomes $g(d)$:
 
-    * ``one_sided=False``: :math:`g(d) = \mathrm{sign}(d)\max(|d| - w, 0)`, a dead zone
+    * ``one_sided=False``: $g(d) = \mathrm{sign}(d)\max(|d| - w, 0)$, a dead zone
       (a clearance in a spring, two anti-parallel diodes);
-    * ``one_sided=True``: :math:`g(d) = \max(d - w, 0)`, conduction in one direction only
+    * ``one_sided=True``: $g(d) = \max(d - w, 0)$, conduction in one direction only
       past a forward drop (a diode, a check valve's cracking pressure).
 
-    Both are smoothed as :class:`DeadZone` (softplus, :math:`s` = ``sharpness``, relative
-    to :math:`w`, so the rounding follows the variables' units). Parameter
-    ``{name}_width`` (:math:`w > 0`, in the state's units). Both shapes are one mechanism:
+    Both are smoothed as [`DeadZone`][sk_offwhite.DeadZone] (softplus, $s$ = ``sharpness``, relative
+    to $w$, so the rounding follows the variables' units). Parameter
+    ``{name}_width`` ($w > 0$, in the state's units). Both shapes are one mechanism:
     a set holds at most one of them.
     """
 
@@ -1228,23 +1229,23 @@ class DifferenceDeadZone(Effect):
 
 
 class Backlash(Effect):
-    r"""Input ``input`` drives the plant through a play of half-width :math:`w` (backlash).
+    r"""Input ``input`` drives the plant through a play of half-width $w$ (backlash).
 
-    The driven side's position :math:`p` is a hidden state: it stays where it is until the
+    The driven side's position $p$ is a hidden state: it stays where it is until the
     input pushes it from one side of the play,
 
-    .. math::
+    $$
+    p_{k+1} = \mathrm{clip}(p_k,\ u_k - w,\ u_k + w)
+    \approx p_k + \eta(u_k - w - p_k) - \eta(p_k - u_k - w),
+    \qquad \eta(a) = \frac{w}{s}\,\mathrm{sp}\Bigl(\frac{s\,a}{w}\Bigr),
+    $$
 
-        p_{k+1} = \mathrm{clip}(p_k,\ u_k - w,\ u_k + w)
-        \approx p_k + \eta(u_k - w - p_k) - \eta(p_k - u_k - w),
-        \qquad \eta(a) = \frac{w}{s}\,\mathrm{sp}\Bigl(\frac{s\,a}{w}\Bigr),
-
-    and the declared step sees :math:`p_{k+1}` in place of :math:`u_k` (:math:`\mathrm{sp}`
-    the softplus, :math:`s` = ``sharpness``, relative to :math:`w`, so the smoothing
+    and the declared step sees $p_{k+1}$ in place of $u_k$ ($\mathrm{sp}$
+    the softplus, $s$ = ``sharpness``, relative to $w$, so the smoothing
     follows the input's units). A gear's or a lead screw's play between a commanded position
     and the load: proposed for inputs of kind ``"position"`` or ``"angle"``. Parameter
-    ``{name}_width`` (:math:`w > 0`, in the input's units); hidden state
-    ``{name}_position`` (:math:`p`, started at ``position`` and estimated with the initial
+    ``{name}_width`` ($w > 0$, in the input's units); hidden state
+    ``{name}_position`` ($p$, started at ``position`` and estimated with the initial
     state).
     """
 
@@ -1272,8 +1273,8 @@ class Backlash(Effect):
         return (input_kinds[self.input],)
 
     def hidden_start(self, hidden, u, theta) -> tuple[float, ...]:
-        r"""The guess where the play holds it at the first input (:math:`|p - u| \le w`),
-        else the input itself: beyond the play the first step moves :math:`p` to its edge
+        r"""The guess where the play holds it at the first input ($|p - u| \le w$),
+        else the input itself: beyond the play the first step moves $p$ to its edge
         whatever the guess, so a fit started there cannot move it."""
         position, command = float(hidden[0]), float(u[self.input])
         inside = abs(position - command) <= float(theta[f"{self.name}_width"])
@@ -1281,12 +1282,12 @@ class Backlash(Effect):
 
     def hidden_bounds(self, u) -> tuple[tuple[float, float], ...]:
         r"""The record's input range widened by itself on each side,
-        :math:`[\min u - R,\ \max u + R]` with :math:`R = \max u - \min u`. A start
-        farther out is held at the play's edge by the first step as long as :math:`w \le R`
+        $[\min u - R,\ \max u + R]$ with $R = \max u - \min u$. A start
+        farther out is held at the play's edge by the first step as long as $w \le R$
         (a wider play never moves), so the bounds remove no model; without them a fit
         can run the start along that flat direction (measured on the servo:
-        :math:`1.7\cdot10^{14}` rad, where doubles are 0.03 rad apart against a half-width
-        of 0.05). A constant input (:math:`R = 0`) bounds nothing."""
+        $1.7\cdot10^{14}$ rad, where doubles are 0.03 rad apart against a half-width
+        of 0.05). A constant input ($R = 0$) bounds nothing."""
         return (_widened_range(u, self.input),)
 
     def advance(self, hidden, u, theta):
@@ -1307,10 +1308,10 @@ class Backlash(Effect):
 
 
 class FirstOrderLag(Effect):
-    """What the first-order lags of an input (:class:`InputLag`) and of an output
-    (:class:`~sk_offwhite.SensorLag`) share: the time constant :math:`\\tau`, a positive
+    """What the first-order lags of an input ([`InputLag`][sk_offwhite.InputLag]) and of an output
+    ([`SensorLag`][sk_offwhite.SensorLag]) share: the time constant $\\tau$, a positive
     parameter ``{name}_time_constant`` in the effects' unit of time, like the sampling time
-    :math:`T_s`, and one hidden state started at ``initial``."""
+    $T_s$, and one hidden state started at ``initial``."""
 
     target = "hidden"
 
@@ -1326,7 +1327,7 @@ class FirstOrderLag(Effect):
         return (self.initial,)
 
     def ratio(self, theta):
-        r""":math:`\tau / T_s` at the parameters ``theta``."""
+        r"""$\tau / T_s$ at the parameters ``theta``."""
         return theta[f"{self.name}_time_constant"] / self.sampling_time
 
 
@@ -1334,21 +1335,21 @@ class InputLag(FirstOrderLag):
     r"""Input ``input`` reaches the plant through a first-order lag (actuator dynamics).
 
     A drive's amplifier, a valve's positioner, a heater's element: the actuator's output
-    :math:`p` follows the command with a time constant :math:`\tau` that the declared
+    $p$ follows the command with a time constant $\tau$ that the declared
     physics leaves out. Held over each sample (zero-order hold), exactly,
 
-    .. math::
+    $$
+    p_{k+1} = p_k + \alpha\,(u_k - p_k), \qquad
+    \tilde u_k = p_k + \beta\,(u_k - p_k), \qquad
+    \alpha = 1 - e^{-T_s/\tau}, \quad \beta = 1 - \frac{\tau}{T_s}\,\alpha,
+    $$
 
-        p_{k+1} = p_k + \alpha\,(u_k - p_k), \qquad
-        \tilde u_k = p_k + \beta\,(u_k - p_k), \qquad
-        \alpha = 1 - e^{-T_s/\tau}, \quad \beta = 1 - \frac{\tau}{T_s}\,\alpha,
-
-    where :math:`\tilde u_k`, what the declared step sees, is the lag's mean over the
-    sample. As :math:`\tau \to 0` it is the command itself (the declared model), so a fit
+    where $\tilde u_k$, what the declared step sees, is the lag's mean over the
+    sample. As $\tau \to 0$ it is the command itself (the declared model), so a fit
     started at a short lag starts near the declared model. Parameter
-    ``{name}_time_constant`` (:math:`\tau > 0`, in the effects' unit of time,
-    :func:`time_step`, like ``sampling_time`` :math:`T_s`); hidden state
-    ``{name}_output`` (:math:`p`, started at ``initial``, the actuator settled at the
+    ``{name}_time_constant`` ($\tau > 0$, in the effects' unit of time,
+    `time_step`, like ``sampling_time`` $T_s$); hidden state
+    ``{name}_output`` ($p$, started at ``initial``, the actuator settled at the
     first command, and estimated with the initial state).
     """
 
@@ -1382,7 +1383,7 @@ class InputLag(FirstOrderLag):
 
     def hidden_bounds(self, u) -> tuple[tuple[float, float], ...]:
         r"""The record's input range widened by itself on each side (the lag's output is
-        an average of commands, :math:`[\min u - R,\ \max u + R]`); a constant input
+        an average of commands, $[\min u - R,\ \max u + R]$); a constant input
         bounds nothing."""
         return (_widened_range(u, self.input),)
 
@@ -1400,13 +1401,14 @@ class InputLag(FirstOrderLag):
 
 
 class DictionaryTerm(AdditiveEffect):
-    r"""A term of the dictionary promoted into the physics: :math:`g = c\,\varphi_j(x, u)`.
+    r"""A term of the dictionary promoted into the physics: $g = c\,\varphi_j(x, u)$.
 
     This is how an effect outside the catalogue enters the model: a term of the sparse
-    correction that survives becomes a named parameter ``{name}_coefficient`` (:math:`c`)
-    of the physics, with the physics' time units (see :class:`AdditiveEffect`).
-    ``library`` is the pysindy library, ``input_features`` the names of ``[x; u]`` and
-    ``column`` the index of :math:`\varphi_j` among its features.
+    correction that survives becomes a named parameter ``{name}_coefficient`` ($c$)
+    of the physics, with the physics' time units (see
+    [`AdditiveEffect`][sk_offwhite.AdditiveEffect]). ``library`` is the pysindy library,
+    ``input_features`` the names of ``[x; u]`` and ``column`` the index of $\varphi_j$ among its
+    features.
     """
 
     def __init__(
@@ -1418,7 +1420,7 @@ class DictionaryTerm(AdditiveEffect):
 
     @property
     def feature(self) -> str:
-        r"""Name of :math:`\varphi_j`."""
+        r"""Name of $\varphi_j$."""
         return self._compiled().names[self.column]
 
     def _compiled(self):
@@ -1460,18 +1462,18 @@ class DictionaryTerm(AdditiveEffect):
 
 
 class Switched(Effect):
-    r"""``effect`` behind a switch: a fixed parameter ``{name}_on`` (:math:`s`) says
+    r"""``effect`` behind a switch: a fixed parameter ``{name}_on`` ($s$) says
     whether it acts,
 
-    .. math::
+    $$
+    u \leftarrow E(u) \text{ if } s > \tfrac12 \text{ else } u
+    $$
 
-        u \leftarrow E(u) \text{ if } s > \tfrac12 \text{ else } u
-
-    (and likewise for the state update and the output), so :math:`s = 1` is the effect,
-    exactly as :func:`augment` adds it, and :math:`s = 0` the model without it. The switch
-    is a parameter value, not structure: models that differ only in which effects are on
+    (and likewise for the state update and the output), so $s = 1$ is the effect,
+    exactly as [`augment`][sk_offwhite.augment] adds it, and $s = 0$ the model without it. The
+    switch is a parameter value, not structure: models that differ only in which effects are on
     share one compiled program (``LoopSettings(share_programs=True)`` fits the loop's
-    candidate sets this way, see :mod:`sk_offwhite.loop._switchboard`). An effect that is off is not
+    candidate sets this way, see `sk_offwhite.loop._switchboard`). An effect that is off is not
     computed (a ``lax.cond`` on the switch) and has zero derivatives; a fit leaves its
     parameters where they start. The memory of an effect whose hidden states follow the
     inputs alone (``hidden_free`` false: a dead time's past commands) follows them on or
@@ -1557,8 +1559,9 @@ class Switched(Effect):
 
 
 class SwitchedTerm(Switched, AdditiveEffect):
-    """:class:`Switched` for an :class:`AdditiveEffect`: the term, or zero when off (inside
-    the integrated right-hand side of a continuous-time model, like the term itself)."""
+    """[`Switched`][sk_offwhite.Switched] for an [`AdditiveEffect`][sk_offwhite.AdditiveEffect]: the
+    term, or zero when off (inside the integrated right-hand side of a continuous-time model, like
+    the term itself)."""
 
     def __init__(self, effect: AdditiveEffect):
         super().__init__(effect)
@@ -1583,13 +1586,13 @@ def _if_on(on, changed, unchanged):
 
 
 def switched(effect: Effect) -> Switched:
-    """``effect`` behind a switch (:class:`SwitchedTerm` for an additive term)."""
+    """``effect`` behind a switch (`SwitchedTerm` for an additive term)."""
     return SwitchedTerm(effect) if isinstance(effect, AdditiveEffect) else Switched(effect)
 
 
 def switches(effects, on) -> dict[str, Parameter]:
     """Switch parameters of the switched ``effects``: ``1`` for those in ``on``, else ``0``
-    (to pass to :meth:`PhysicsModel.with_parameters`)."""
+    (to pass to [`PhysicsModel.with_parameters`][sk_offwhite.PhysicsModel.with_parameters])."""
     names = {e.name for e in on}
     return {e.switch: _switch_value(e.name in names) for e in effects}
 
@@ -1659,7 +1662,7 @@ class AugmentedRhs(_EffectChain):
 
 def time_step(physics: PhysicsModel) -> float:
     """The unit of time of the effects' rates: the sampling time of a physics built with
-    :meth:`PhysicsModel.from_ode`, else 1 (one sample)."""
+    [`PhysicsModel.from_ode`][sk_offwhite.PhysicsModel.from_ode], else 1 (one sample)."""
     return float(physics.sampling_time) if _continuous(physics) else 1.0
 
 
@@ -1711,19 +1714,20 @@ def augment(physics: PhysicsModel, *effects: Effect) -> PhysicsModel:
         The declared model; it is not modified.
     *effects : Effect
         Effects applied in order after the declared step (state effects) and output map
-        (output effects; those that act on the final reading, :attr:`Effect.reads_output`,
-        after the others); for a physics built with :meth:`PhysicsModel.from_ode`, input
-        effects and :class:`AdditiveEffect` terms act inside the integrated right-hand
-        side instead. Effects with memory (:class:`Backlash`) act first, on the input,
-        through hidden states of their own. Their parameters are appended to the model's,
-        by name. Augmenting an augmented model adds to its effects.
+        (output effects; those that act on the final reading,
+        [`Effect.reads_output`][sk_offwhite.Effect.reads_output], after the others); for a physics
+        built with [`PhysicsModel.from_ode`][sk_offwhite.PhysicsModel.from_ode], input effects and
+        [`AdditiveEffect`][sk_offwhite.AdditiveEffect] terms act inside the integrated right-hand
+        side instead. Effects with memory ([`Backlash`][sk_offwhite.Backlash]) act first, on the
+        input, through hidden states of their own. Their parameters are appended to the model's, by
+        name. Augmenting an augmented model adds to its effects.
 
     Returns
     -------
     PhysicsModel
         Same states, inputs, names, initial-state settings and constraints; the hidden
         states of the effects that have some are appended to the states (with free initial
-        values, see :mod:`sk_offwhite._hidden`), and ``n_declared_states`` counts the
+        values, see `sk_offwhite._hidden`), and ``n_declared_states`` counts the
         declared ones.
     """
     for effect in effects:

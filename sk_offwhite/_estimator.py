@@ -116,55 +116,55 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
 
     The model (Donati et al., eq. 2) is
 
-    .. math::
+    $$
+    \hat x_{k+1} = f(\hat x_k, u_k; \theta) + S\,\delta(\hat x_k, u_k; \omega), \qquad
+    \hat z_k = h(\hat x_k, u_k; \theta) + R\,\delta(\hat x_k, u_k; \omega), \qquad
+    \delta_i = \sum_j \Omega_{ij}\, \varphi_j(\hat x_k, u_k),
+    $$
 
-        \hat x_{k+1} = f(\hat x_k, u_k; \theta) + S\,\delta(\hat x_k, u_k; \omega), \qquad
-        \hat z_k = h(\hat x_k, u_k; \theta) + R\,\delta(\hat x_k, u_k; \omega), \qquad
-        \delta_i = \sum_j \Omega_{ij}\, \varphi_j(\hat x_k, u_k),
+    and ``fit`` minimises over $\theta$, $\hat x_0$ and $\omega$ the cost
 
-    and ``fit`` minimises over :math:`\theta`, :math:`\hat x_0` and :math:`\omega` the cost
+    $$
+    C_T = \frac{1}{N n_z}\sum_{k,o} \frac{(\hat z_{ko} - z_{ko})^2}{\sigma_o^2}
+        + \gamma \sum_{ij} s_{ij} |\Omega_{ij}|_\beta
+        + \frac{\lambda}{N}\sum_k \|\max(p(\hat x_k), 0)\|^2
+        + \frac{\nu}{N}\sum_k \|q(\hat x_k)\|^2,
+    $$
 
-    .. math::
-
-        C_T = \frac{1}{N n_z}\sum_{k,o} \frac{(\hat z_{ko} - z_{ko})^2}{\sigma_o^2}
-            + \gamma \sum_{ij} s_{ij} |\Omega_{ij}|_\beta
-            + \frac{\lambda}{N}\sum_k \|\max(p(\hat x_k), 0)\|^2
-            + \frac{\nu}{N}\sum_k \|q(\hat x_k)\|^2,
-
-    where :math:`\hat z` is the *simulated* output (the model feeds back its own state),
-    :math:`\sigma_o` the standard deviation of output :math:`o` and :math:`s_{ij}` the RMS
-    change of the normalised simulated output per unit :math:`\Omega_{ij}`, measured on the
+    where $\hat z$ is the *simulated* output (the model feeds back its own state),
+    $\sigma_o$ the standard deviation of output $o$ and $s_{ij}$ the RMS
+    change of the normalised simulated output per unit $\Omega_{ij}$, measured on the
     physics-only fit. Every term is dimensionless: rescaling ``u``, ``z``, the states or a
     dictionary column leaves the fitted model unchanged. With a dictionary the fit has three
-    stages (see :mod:`sk_offwhite._sparsity`): the physics alone, which gives
-    :math:`s_{ij}` and ``gamma_max_``; the penalised fit; pruning of the terms that do not
+    stages (see `sk_offwhite._sparsity`): the physics alone, which gives
+    $s_{ij}$ and ``gamma_max_``; the penalised fit; pruning of the terms that do not
     matter and a refit of the support without the penalty, so ``coef_`` has exact zeros.
-    :math:`S` and :math:`R` pick the corrected state equations (``delta_states``) and
+    $S$ and $R$ pick the corrected state equations (``delta_states``) and
     outputs (``delta_outputs``, empty by default: a correction of the output map is a
     static nonlinearity of the sensor, such as an uncalibrated gauge's curve).
 
     Parameters
     ----------
     physics : PhysicsModel, default=None
-        The physical model. ``None`` uses :meth:`PhysicsModel.linear`, a black-box linear
-        state-space model with one state per output.
+        The physical model. ``None`` uses [`PhysicsModel.linear`][sk_offwhite.PhysicsModel.linear],
+        a black-box linear state-space model with one state per output.
     library : pysindy feature library or RidgeBasis, default=None
-        Dictionary :math:`\varphi` of the correction, evaluated on :math:`[x; u]` with the
-        physics' state and input names; :math:`x` holds the declared states only (not the
-        hidden states of an :func:`~sk_offwhite.augment`-ed effect with memory). ``None``
+        Dictionary $\varphi$ of the correction, evaluated on $[x; u]$ with the
+        physics' state and input names; $x$ holds the declared states only (not the
+        hidden states of an [`augment`][sk_offwhite.augment]-ed effect with memory). ``None``
         fits the physics alone.
     gamma : float, default=0.01
-        :math:`\gamma`, weight of the scaled (smoothed) L1 norm of :math:`\Omega`;
+        $\gamma$, weight of the scaled (smoothed) L1 norm of $\Omega$;
         dimensionless. A term is worth keeping when the RMS change it makes in the simulated
         output exceeds about ``gamma`` output standard deviations; above ``gamma_max_`` the
-        correction is empty. :func:`~sk_offwhite.fit_gamma_path` fits a grid relative to
+        correction is empty. [`fit_gamma_path`][sk_offwhite.fit_gamma_path] fits a grid relative to
         ``gamma_max_`` and chooses by cross-validation.
     lam : float, default=0.0
-        :math:`\lambda`, weight of the violation of ``physics.inequality`` (:math:`p\le 0`).
+        $\lambda$, weight of the violation of ``physics.inequality`` ($p\le 0$).
     nu : float, default=0.0
-        :math:`\nu`, weight of the squared ``physics.equality`` (:math:`q = 0`).
+        $\nu$, weight of the squared ``physics.equality`` ($q = 0$).
     horizon : int, default=None
-        :math:`T`. ``None`` simulates each record whole from its initial state. An int cuts
+        $T$. ``None`` simulates each record whole from its initial state. An int cuts
         records into windows of ``horizon`` steps with their own initial states, linked by a
         continuity penalty of weight ``shooting_weight`` (multiple shooting).
     delta_states : sequence of int, default=None
@@ -173,17 +173,17 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         ``delta_outputs`` is given.
     delta_outputs : sequence of int, default=None
         Outputs that receive the correction (a static correction of the output map,
-        evaluated on the same dictionary of :math:`[x; u]`); ``None`` means none.
+        evaluated on the same dictionary of $[x; u]$); ``None`` means none.
     prune_tol : float, default=0.01
         Relative tolerance of the pruning stage: a term is removed when its contribution
-        :math:`s_{ij}|\Omega_{ij}|` is below ``prune_tol`` times the largest, or when zeroing
-        it raises the simulation error :math:`F` by less than the fraction ``prune_tol``.
+        $s_{ij}|\Omega_{ij}|$ is below ``prune_tol`` times the largest, or when zeroing
+        it raises the simulation error $F$ by less than the fraction ``prune_tol``.
         ``0`` keeps every term.
     refit : bool, default=True
         Refit the pruned support without the penalty (removes the shrinkage of the L1
         term); ``False`` keeps the penalised weights of the support.
     l1_smoothing : float, default=100.0
-        :math:`\beta` of the softplus surrogate of :math:`|s_{ij}\Omega_{ij}|` (larger is
+        $\beta$ of the softplus surrogate of $|s_{ij}\Omega_{ij}|$ (larger is
         closer to L1); dimensionless like ``gamma``.
     shooting_weight : float, default=10.0
         Weight of the window-continuity penalty when ``horizon`` is set.
@@ -194,9 +194,9 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         Jacobian by window colouring (``G + 2 n_x`` tangents for ``G`` global variables,
         however many windows) and solves sparse normal equations.
     lm_scaling : {'per-variable', 'global'}, default='per-variable'
-        Levenberg-Marquardt's scaling :math:`D` in :math:`(J^TJ + \mu D)s = -J^Tr`:
-        :math:`\mathrm{diag}(J^TJ)` plus a floor of :math:`10^{-9}` times, with
-        ``'per-variable'``, the largest :math:`(J^TJ)_{ii}` that variable has had in the run,
+        Levenberg-Marquardt's scaling $D$ in $(J^TJ + \mu D)s = -J^Tr$:
+        $\mathrm{diag}(J^TJ)$ plus a floor of $10^{-9}$ times, with
+        ``'per-variable'``, the largest $(J^TJ)_{ii}$ that variable has had in the run,
         so rescaling a state, an input or a dictionary column leaves the iterates the same
         up to rounding (a fit that stops short of a minimum stops at the same model); with
         ``'global'`` (the previous rule), the largest entry of all variables now, one floor
@@ -209,12 +209,12 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     tol : float, default=1e-10
         Relative cost decrease under which the solver stops.
     init_window : int, default=None
-        Samples used by :meth:`score` to estimate the initial state of the scored record
+        Samples used by `score` to estimate the initial state of the scored record
         (excluded from the score). ``None``: ``min(50, n_samples // 5)``; ``0``: simulate
         from the fitted initial state ``x0_``.
     warm_start : bool, default=False
         Start ``fit`` from the previous solution (parameters of the same name,
-        :math:`\Omega` and inner weights of the same shape and, for the same number of
+        $\Omega$ and inner weights of the same shape and, for the same number of
         records, initial states) instead of the physics' guesses, e.g. to refine a
         short-``horizon`` fit with ``horizon=None``.
     verbose : int, default=0
@@ -231,24 +231,24 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     x0_ : ndarray of shape (n_states,)
         Fitted initial state of the first record; ``initial_states_`` holds all records'.
     coef_ : ndarray of shape (n_delta_states + n_delta_outputs, n_features)
-        :math:`\Omega` with exact zeros off the support (empty without a library): the
+        $\Omega$ with exact zeros off the support (empty without a library): the
         rows of ``delta_states_``, then those of ``delta_outputs_``.
     support_ : ndarray of bool, same shape as ``coef_``
         Where ``coef_`` is non-zero; ``n_nonzero_`` counts them.
     penalty_scale_ : ndarray, same shape as ``coef_``
-        :math:`s_{ij}`; ``penalty_scale_ * abs(coef_)`` is each term's contribution to the
+        $s_{ij}$; ``penalty_scale_ * abs(coef_)`` is each term's contribution to the
         simulated output in output standard deviations (0 for a term that cannot move it).
     gamma_max_ : float
-        Smallest ``gamma`` for which :math:`\Omega = 0` is optimal (``nan`` without a
+        Smallest ``gamma`` for which $\Omega = 0$ is optimal (``nan`` without a
         library).
     term_gain_, term_absorbed_, term_estimate_, term_conditional_gain_ : ndarray
         Shape (n_delta, n_features). What each dictionary term could explain at the
         physics-only fit once the physics re-adjusts (first order): the fraction of the
         cost it removes alone, the fraction of its effect the physics already produces,
         its linearised weight, and its gain beyond the stronger terms (matching pursuit)
-        (:class:`~sk_offwhite._sparsity.TermEvidence`); ``nan`` without a library.
+        (`TermEvidence`); ``nan`` without a library.
     output_scale_ : ndarray of shape (n_outputs,)
-        :math:`\sigma_o` of the training data.
+        $\sigma_o$ of the training data.
     feature_names_ : list of str
         Names of the dictionary terms (from the pysindy library).
     delta_states_, delta_outputs_ : tuple of int
@@ -259,7 +259,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         Cost after each accepted step. ``cost_``, ``n_iter_``, ``converged_`` and
         ``solver_message_`` describe the end of the fit.
     fit_error_ : float
-        :math:`\sqrt{F}`, the RMS of the multi-step fit residuals in output standard
+        $\sqrt{F}$, the RMS of the multi-step fit residuals in output standard
         deviations at the solution (without the penalty and constraint terms).
     n_features_in_ : int
         Number of inputs. ``n_outputs_``: number of outputs.
@@ -270,10 +270,10 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     index of each row) when rows come from non-adjacent blocks, e.g. to
     ``GridSearchCV.fit(u, z, sample_index=np.arange(n))``: every gap then starts a new record
     with its own initial state instead of being simulated through.
-    :class:`~sk_offwhite.SequenceSplit` makes folds whose training rows are contiguous,
+    [`SequenceSplit`][sk_offwhite.SequenceSplit] makes folds whose training rows are contiguous,
     which need no ``sample_index``. A ``sample_index`` that cuts out records of a single
-    row, as shuffled folds do, issues a :class:`~sk_offwhite.SequenceWarning`. With metadata
-    routing enabled, request ``sample_index`` with ``set_fit_request(sample_index=True)``
+    row, as shuffled folds do, issues a [`SequenceWarning`][sk_offwhite.SequenceWarning]. With
+    metadata routing enabled, request ``sample_index`` with ``set_fit_request(sample_index=True)``
     (and ``set_score_request``); ``clone`` keeps these requests.
     """
 
@@ -464,7 +464,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
             The solver stopped before its convergence rule was met, or at no model
             (``converged_`` is then ``False``; the message says why).
         RunawayParameterWarning
-            A free parameter ended more than :math:`10^6` times its declared start away,
+            A free parameter ended more than $10^6$ times its declared start away,
             where the data do not determine it.
         """
         _check_counts(self)
@@ -472,7 +472,8 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
 
     def _fit(self, u, z, sample_index, reference_only: bool):
         """``fit``; ``reference_only`` stops after the physics-only stage (``coef_`` zero,
-        ``gamma_max_`` computed), which is how :func:`~sk_offwhite.fit_gamma_path` starts."""
+        ``gamma_max_`` computed), which is how [`fit_gamma_path`][sk_offwhite.fit_gamma_path]
+        starts."""
         records = self._records(u, z, sample_index, reset=True)
         n_inputs, n_outputs = records[0][0].shape[1], records[0][1].shape[1]
         self._check_record_lengths(records)
@@ -558,7 +559,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
 
     def _optimizer(self):
         """The user's optimizer, checked, or ``None``: the optax loop then builds its
-        default (:func:`~sk_offwhite._optim.default_optimizer`), and a fit that never runs
+        default (`default_optimizer`), and a fit that never runs
         it never imports optax."""
         if self.optimizer is not None and not callable(getattr(self.optimizer, "update", None)):
             raise TypeError(
@@ -640,7 +641,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
 
     def _simulate_record(self, model, u, x0):
         """States, outputs and correction terms of a free run from ``x0``
-        (:func:`~sk_offwhite._rollout.free_run_record`)."""
+        (`free_run_record`)."""
         params = {k: to_device(v) for k, v in self._fitted_blocks().items()}
         return free_run_record(model, params, x0, u)
 
@@ -675,7 +676,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         -------
         z_sim : ndarray of shape (n_samples,) or (n_samples, n_outputs), or list
             A simulation that diverges gives non-finite values after the sample where it
-            does, with a :class:`DivergenceWarning` naming that sample.
+            does, with a [`DivergenceWarning`][sk_offwhite.DivergenceWarning] naming that sample.
         """
         if is_experiment_list(u):
             starts = _per_record("z_init", z_init, len(u))
@@ -686,14 +687,14 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     def simulate(self, u, *, x0=None, z_init=None) -> Bunch:
         r"""Free-run simulation with everything a residual analysis needs.
 
-        Same arguments as :meth:`predict` (one record).
+        Same arguments as `predict` (one record).
 
         Returns
         -------
         result : sklearn.utils.Bunch
             ``outputs`` (n_samples, n_outputs), ``states`` (n_samples, n_states) with
-            :math:`\hat x_k`, ``correction`` (n_samples, n_states) with the black-box term
-            :math:`S\delta(\hat x_k, u_k)` added to each state update, and ``x0``.
+            $\hat x_k$, ``correction`` (n_samples, n_states) with the black-box term
+            $S\delta(\hat x_k, u_k)$ added to each state update, and ``x0``.
         """
         check_is_fitted(self)
         _check_feature_names(self, u, reset=False)
@@ -714,7 +715,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         return min(50, n_samples // 5)
 
     def score(self, u, z, sample_index=None, sample_weight=None):
-        """:math:`R^2` of the simulated output, after estimating each record's initial state.
+        """$R^2$ of the simulated output, after estimating each record's initial state.
 
         The first ``init_window`` samples of every contiguous record (see ``sample_index``)
         are used to estimate its initial state, as MATLAB's ``compare`` does, and are
@@ -729,7 +730,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         sample_index : array-like of shape (n_samples,), default=None
             Original time index of each row; a jump starts a new record.
         sample_weight : array-like of shape (n_samples,), default=None
-            Weights of the scored samples in :math:`R^2` (all rows of a list of records,
+            Weights of the scored samples in $R^2$ (all rows of a list of records,
             in order).
 
         Returns
@@ -808,7 +809,7 @@ class DivergenceWarning(RuntimeWarning):
 
 class RunawayParameterWarning(UserWarning):
     """A fitted parameter ran orders of magnitude away from its declared start, where the
-    data no longer determine it (:func:`~sk_offwhite._verdict.runaway_parameters`)."""
+    data no longer determine it (`runaway_parameters`)."""
 
 
 def _warn_if_runaway(physics, theta) -> None:

@@ -2,22 +2,22 @@ r"""Hidden states: effects with memory appended to a model's state.
 
 Some effects cannot be written as a function of the current state and input: the play of
 a gear (backlash) remembers which side of the play it last touched. Such an effect carries
-hidden states :math:`h` of its own, appended after the declared states,
+hidden states $h$ of its own, appended after the declared states,
 
-.. math::
+$$
+\begin{bmatrix} x_{k+1} \\ h_{k+1} \end{bmatrix} =
+\begin{bmatrix} f\bigl(x_k, \tilde u_k; \theta\bigr) \\ h_{k+1} \end{bmatrix},
+\qquad (\tilde u_k, h_{k+1}) = a(h_k, u_k; \theta_E),
+$$
 
-    \begin{bmatrix} x_{k+1} \\ h_{k+1} \end{bmatrix} =
-    \begin{bmatrix} f\bigl(x_k, \tilde u_k; \theta\bigr) \\ h_{k+1} \end{bmatrix},
-    \qquad (\tilde u_k, h_{k+1}) = a(h_k, u_k; \theta_E),
-
-where :math:`a` is the effect's ``advance``: it turns the input the plant receives into the
+where $a$ is the effect's ``advance``: it turns the input the plant receives into the
 one the declared step sees and updates its memory. An effect that ``follows_output`` (a
-slow sensor, :class:`~sk_offwhite.SensorLag`) updates its memory from the declared output
-map instead, :math:`h_{k+1} = a(h_k, y_k, y_{k+1}; \theta_E)` with
-:math:`y_k = h(x_k, u_k; \theta)` and :math:`y_{k+1} = h(x_{k+1}, u_k; \theta)`, and the
+slow sensor, [`SensorLag`][sk_offwhite.SensorLag]) updates its memory from the declared output
+map instead, $h_{k+1} = a(h_k, y_k, y_{k+1}; \theta_E)$ with
+$y_k = h(x_k, u_k; \theta)$ and $y_{k+1} = h(x_{k+1}, u_k; \theta)$, and the
 output reads it. The declared step, output map and
-constraints see only :math:`x`; the hidden states' initial values are estimated with the
-declared ones (they are ordinary, free entries of :math:`x_0`), unless the effect fixes
+constraints see only $x$; the hidden states' initial values are estimated with the
+declared ones (they are ordinary, free entries of $x_0$), unless the effect fixes
 them (``Effect.hidden_free = False``: each record starts them where the effect's
 ``hidden_start`` puts them).
 
@@ -30,7 +30,7 @@ Where they are estimated and where they are not:
   the inputs alone determine (``hidden_free`` false): those start where the record's
   inputs put them (``Effect.hidden_path``: a dead time's past commands are the commands
   before the window), so no window fits what is known;
-- the sparse correction :math:`\delta` neither reads them nor corrects them: its
+- the sparse correction $\delta$ neither reads them nor corrects them: its
   dictionary is evaluated on the declared states and the inputs, and its rows are the
   declared states' unless ``delta_states`` names others;
 - the loop proposes effects on the declared states only.
@@ -118,10 +118,10 @@ class HiddenStateStep:
 
 def hidden_start(step, x0, u_first, theta: dict, fixed=None) -> np.ndarray:
     """``x0`` (a record's initial-state guess) with each effect's hidden states where a
-    record whose first input is ``u_first`` starts them (:meth:`Effect.hidden_start`);
-    entries marked in ``fixed`` and models without hidden states are left as they are,
-    but for the states of an effect that fixes them (``hidden_free`` false), which are
-    always started there."""
+    record whose first input is ``u_first`` starts them
+    ([`Effect.hidden_start`][sk_offwhite.Effect.hidden_start]); entries marked in ``fixed`` and
+    models without hidden states are left as they are, but for the states of an effect that fixes
+    them (``hidden_free`` false), which are always started there."""
     x0 = np.array(x0, dtype=float)
     if not isinstance(step, HiddenStateStep):
         return x0
@@ -135,7 +135,7 @@ def hidden_start(step, x0, u_first, theta: dict, fixed=None) -> np.ndarray:
 
 def n_declared_states(physics) -> int:
     """The number of states ``physics`` declares: its states less the hidden states of its
-    effects (:func:`~sk_offwhite.augment`)."""
+    effects ([`augment`][sk_offwhite.augment])."""
     return getattr(physics, "n_declared_states", physics.n_states)
 
 
@@ -151,8 +151,8 @@ def input_determined(step, n_states: int) -> np.ndarray:
 
 def with_input_determined(step, states, u, theta: dict, samples) -> np.ndarray:
     """``states`` (one row per sample in ``samples`` of a record with inputs ``u``) with
-    the states the inputs determine (:func:`input_determined`) set to their values there
-    (:meth:`Effect.hidden_path`)."""
+    the states the inputs determine (`input_determined`) set to their values there
+    ([`Effect.hidden_path`][sk_offwhite.Effect.hidden_path])."""
     states = np.array(states, dtype=float)
     if not isinstance(step, HiddenStateStep):
         return states
@@ -164,7 +164,7 @@ def with_input_determined(step, states, u, theta: dict, samples) -> np.ndarray:
 
 def sensor_readings(step) -> tuple[tuple[int, int], ...]:
     """``(output, state)`` for each hidden state that an output reads (an effect that
-    follows the output, :class:`~sk_offwhite.SensorLag`); empty for other models."""
+    follows the output, [`SensorLag`][sk_offwhite.SensorLag]); empty for other models."""
     if not isinstance(step, HiddenStateStep):
         return ()
     return tuple(
@@ -174,8 +174,9 @@ def sensor_readings(step) -> tuple[tuple[int, int], ...]:
 
 def hidden_bounds(step, u, n_states: int) -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper bounds of the ``n_states`` initial states on a record with inputs
-    ``u`` that the effects' hidden states set (:meth:`Effect.hidden_bounds`); the
-    declared states and models without hidden states are unbounded here."""
+    ``u`` that the effects' hidden states set
+    ([`Effect.hidden_bounds`][sk_offwhite.Effect.hidden_bounds]); the declared states and models
+    without hidden states are unbounded here."""
     lower, upper = np.full(n_states, -np.inf), np.full(n_states, np.inf)
     if not isinstance(step, HiddenStateStep):
         return lower, upper

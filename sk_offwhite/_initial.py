@@ -9,12 +9,12 @@ solver's two programs and one dispatch per step.
 
 The cost is the normalised output error over the window,
 
-.. math::
+$$
+C(x_0) = \frac{1}{N n_z} \sum_{k<N} \big\|(\hat z_k(x_0) - z_k) / \sigma_o\big\|^2,
+$$
 
-    C(x_0) = \frac{1}{N n_z} \sum_{k<N} \big\|(\hat z_k(x_0) - z_k) / \sigma_o\big\|^2,
-
-with :math:`\sigma_o` the outputs' scale; the steps are those of
-:func:`~sk_offwhite._optim.lm_loop` (Marquardt's per-variable scaling, the same damping
+with $\sigma_o$ the outputs' scale; the steps are those of
+`lm_loop` (Marquardt's per-variable scaling, the same damping
 updates and stopping rules).
 """
 
@@ -44,7 +44,7 @@ __all__ = ["estimate_initial_state"]
 
 class _Iterate(NamedTuple):
     """The run's state: the last accepted ``x0`` with its residual, Jacobian and cost, the
-    damping, the per-variable scale (:func:`~sk_offwhite._optim.damped_diagonal`), the
+    damping, the per-variable scale (`damped_diagonal`), the
     trial steps taken, whether a stopping rule has fired and whether ``x0`` has been
     evaluated (the first pass of the loop only evaluates the start)."""
 
@@ -77,7 +77,7 @@ def _linearised(model, params, x0, u, z, scale, free):
 
 
 def _damped_step(it: _Iterate, free):
-    r"""Marquardt's step :math:`(J^TJ + \mu D)\,s = -J^Tr` over the free states."""
+    r"""Marquardt's step $(J^TJ + \mu D)\,s = -J^Tr$ over the free states."""
     jtj = it.jacobian.T @ it.jacobian
     system = jtj + jnp.diag(damped_diagonal(jnp.diag(jtj), it.damping, free, jnp, it.scale))
     return jnp.linalg.solve(system, jnp.where(free, -it.jacobian.T @ it.residual, 0.0))

@@ -6,13 +6,13 @@ a dead zone or a saturation for an actuator. Kinds are declared with
 ``PhysicsModel(..., state_kinds=..., input_kinds=...)``; a state left ``"generic"`` takes a
 kind from the structure of the step when it is a kinematic pair: if
 
-.. math::
+$$
+x^+_i - x_i = c\, x_j \qquad (c \ne 0 \text{ constant}, \text{ nothing else})
+$$
 
-    x^+_i - x_i = c\, x_j \qquad (c \ne 0 \text{ constant}, \text{ nothing else})
-
-then :math:`x_i` is a position and :math:`x_j` its velocity (an angle and its rate when
-:math:`x_i` was declared an angle). The test evaluates the Jacobian of
-:math:`f(x, u) - x` at a few random points.
+then $x_i$ is a position and $x_j$ its velocity (an angle and its rate when
+$x_i$ was declared an angle). The test evaluates the Jacobian of
+$f(x, u) - x$ at a few random points.
 """
 
 from __future__ import annotations
@@ -76,7 +76,7 @@ def check_kinds(argument: str, kinds, count: int) -> tuple[str, ...]:
 
 
 def _increment_jacobians(physics, n_points: int, seed: int):
-    """Jacobians of :math:`f(x, u) - x` in ``x`` and ``u`` at random points (numpy)."""
+    """Jacobians of $f(x, u) - x$ in ``x`` and ``u`` at random points (numpy)."""
     rng = np.random.default_rng(seed)
     theta = {k: p.value for k, p in physics.parameters.items()}
     scale = np.maximum(np.abs(np.asarray(physics.x0, float)), 1.0)
@@ -96,7 +96,7 @@ def _increment_jacobians(physics, n_points: int, seed: int):
 
 
 def kinematic_pairs(physics, n_points: int = 3, seed: int = 0) -> dict[int, int]:
-    """``{velocity: position}`` for every state pair with :math:`x^+_i - x_i = c\\,x_j`."""
+    """``{velocity: position}`` for every state pair with $x^+_i - x_i = c\\,x_j$."""
     try:
         jacobians = _increment_jacobians(physics, n_points, seed)
     except Exception:  # a step that cannot be differentiated here: no inference

@@ -3,7 +3,7 @@
 The fit optimises named blocks (``theta``, ``x0``, ``omega`` and the inner parameters of a
 ridge basis). Solvers see one flat vector of the *free* entries; fixed entries (fixed
 physical parameters, a fixed initial state, masked dictionary weights) stay at their base
-value. :class:`Layout` is hashable so it can be a static argument of ``jax.jit``.
+value. `Layout` is hashable so it can be a static argument of ``jax.jit``.
 """
 
 from __future__ import annotations

@@ -1,26 +1,26 @@
 r"""Levenberg-Marquardt with its whole run on the device: one program, one dispatch.
 
-:func:`~sk_offwhite._optim.lm_loop` drives the iterations from Python: each trial step is
-one call of the compiled iteration (:func:`~sk_offwhite._optim._lm_advance`), and its cost
+`lm_loop` drives the iterations from Python: each trial step is
+one call of the compiled iteration (`_lm_advance`), and its cost
 comes back to decide the next damping. On the short records of the closed loop and the
 support path, that call's dispatch and the transfer back cost about what the iteration
 computes. Here the same iterations run inside one ``lax.while_loop``: the same step, the
-same damping updates (divided by :data:`~sk_offwhite._optim.DAMPING_DOWN` after an
-accepted step, multiplied by :data:`~sk_offwhite._optim.DAMPING_UP` after a rejected one)
+same damping updates (divided by `DAMPING_DOWN` after an
+accepted step, multiplied by `DAMPING_UP` after a rejected one)
 and the same stopping rules, in double precision on the device, so the iterates are those
 of the host loop up to rounding. Its first pass evaluates the start (no step), so the
-iteration is traced once, in the loop, as :mod:`sk_offwhite._initial` does for the initial
+iteration is traced once, in the loop, as `sk_offwhite._initial` does for the initial
 state.
 
 The free vector of a model with switched effects is padded with inert variables to a
-multiple of ``Model.free_multiple`` (:func:`_padded`; its parameters other than the switches
-plus its states, rounded up to a multiple of :data:`PAD_TO`): fits with different switch
+multiple of ``Model.free_multiple`` (`_padded`; its parameters other than the switches
+plus its states, rounded up to a multiple of `PAD_TO`): fits with different switch
 settings (the closed loop's candidates and effect sets on one switchboard) then share one
 program. The padding adds zero rows and columns to the normal equations, so the iterates
 are the same up to rounding.
 
 The host loop stays for ``verbose`` runs (it prints each iteration) and for the coloured
-Jacobian of :mod:`sk_offwhite._structured`, whose normal equations are sparse.
+Jacobian of `sk_offwhite._structured`, whose normal equations are sparse.
 """
 
 from __future__ import annotations
@@ -65,10 +65,10 @@ OUTCOMES = (
 
 class _Run(NamedTuple):
     """The loop's carry: the last accepted state (its residual left out, an empty array:
-    the loop needs only the fit term :math:`F` of it), :math:`F` there, Marquardt's
+    the loop needs only the fit term $F$ of it), $F$ there, Marquardt's
     per-variable scale, the damping, the accepted costs so far
     (``history[: n_accepted + 1]``), the passes made (the first evaluates the start, each
-    later one is a trial step) and the outcome (an index of :data:`OUTCOMES`, 0 while
+    later one is a trial step) and the outcome (an index of `OUTCOMES`, 0 while
     running)."""
 
     state: _LMState
@@ -96,7 +96,7 @@ def _start(free0, omega_shape, max_iter: int) -> _Run:
 
 
 def _outcome(step, accepted, small, damping, new_cost):
-    """The stopping rule that fires on this pass (0: none), as :func:`lm_loop`'s."""
+    """The stopping rule that fires on this pass (0: none), as `lm_loop`'s."""
     converged = step & accepted & small & (damping < 1.0)
     reproduced = step & accepted & (new_cost <= ROUNDING_COST)
     stationary = step & ~accepted & (damping * DAMPING_UP > MAX_DAMPING)
@@ -136,7 +136,7 @@ def _pass(run: _Run, problem: Problem, tol, *, model, layout, forward, per_varia
 
 @partial(jax.jit, static_argnames=("model", "layout", "forward", "per_variable"))
 def _run_on_device(start: _Run, problem, tol, *, model, layout, forward, per_variable):
-    """The whole run from ``start`` (:func:`_start`): the start's evaluation, then trial
+    """The whole run from ``start`` (`_start`): the start's evaluation, then trial
     steps until a stopping rule fires or the history is full."""
     static = dict(model=model, layout=layout, forward=forward, per_variable=per_variable)
     max_iter = start.history.shape[0] - 1
@@ -149,7 +149,7 @@ def _run_on_device(start: _Run, problem, tol, *, model, layout, forward, per_var
 
 PAD_TO = 4
 """The granularity of the size to which the device run pads the free vector of a model with
-switched effects (``Model.free_multiple``, :func:`padded_size`), so that fits with
+switched effects (``Model.free_multiple``, `padded_size`), so that fits with
 different switch settings share one program."""
 
 
@@ -181,9 +181,9 @@ def _padded(free0, problem: Problem, n_entries: int, size: int):
 
 
 def device_run(free0, problem: Problem, model: Model, layout: Layout, max_iter, scaling):
-    """What :func:`_run_on_device` takes for a run from ``free0``: ``(start, problem,
-    static)``, the start carry (:func:`_start`), the problem with its free vector padded
-    (:func:`_padded`) and the static arguments."""
+    """What `_run_on_device` takes for a run from ``free0``: ``(start, problem,
+    static)``, the start carry (`_start`), the problem with its free vector padded
+    (`_padded`) and the static arguments."""
     forward = forward_mode(free0, problem, model, layout)
     omega_shape = dict(layout.blocks).get("omega", (0,))
     size = padded_size(np.shape(free0)[0], model.free_multiple)
@@ -205,10 +205,10 @@ def levenberg_marquardt_on_device(
     verbose: int = 0,
     scaling: str = "per-variable",
 ) -> SolverResult:
-    r"""Projected Levenberg-Marquardt on :math:`\|r(\cdot)\|^2` (the steps and stopping
-    rules of :func:`~sk_offwhite._optim.lm_loop`), the whole run in one program; a
+    r"""Projected Levenberg-Marquardt on $\|r(\cdot)\|^2$ (the steps and stopping
+    rules of `lm_loop`), the whole run in one program; a
     ``verbose`` run goes through the host loop
-    (:func:`~sk_offwhite._optim.levenberg_marquardt`), which prints each iteration."""
+    (`levenberg_marquardt`), which prints each iteration."""
     if verbose:
         options = dict(max_iter=max_iter, tol=tol, verbose=verbose, scaling=scaling)
         return levenberg_marquardt(free0, problem, model, layout, **options)

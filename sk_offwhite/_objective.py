@@ -1,32 +1,32 @@
-r"""The multi-step cost :math:`C_T` as a stacked residual vector.
+r"""The multi-step cost $C_T$ as a stacked residual vector.
 
 Every term of eq. (3) of Donati et al. is written as squared residuals, so that
-:math:`C = \|r\|_2^2` can be minimised by Gauss-Newton / Levenberg-Marquardt as well as by
+$C = \|r\|_2^2$ can be minimised by Gauss-Newton / Levenberg-Marquardt as well as by
 first-order methods:
 
-.. math::
+$$
+C = \underbrace{\frac{1}{N n_z}\sum_{k,o} \frac{(\hat z_{ko} - z_{ko})^2}{\sigma_o^2}}
+      _{\text{normalised simulation MSE } F}
+  + \gamma \sum_{ij} |s_{ij}\Omega_{ij}|_\beta
+  + \frac{\lambda}{N} \sum_k \|\max(p(\hat x_k), 0)\|^2
+  + \frac{\nu}{N} \sum_k \|q(\hat x_k)\|^2
+  + \frac{\rho}{n_\ell n_x} \sum_{\ell, i}
+    \frac{(\hat x^{(\ell-1)}_{T,i} - \hat x^{(\ell)}_{0,i})^2}{\varsigma_i^2}
+$$
 
-    C = \underbrace{\frac{1}{N n_z}\sum_{k,o} \frac{(\hat z_{ko} - z_{ko})^2}{\sigma_o^2}}
-          _{\text{normalised simulation MSE } F}
-      + \gamma \sum_{ij} |s_{ij}\Omega_{ij}|_\beta
-      + \frac{\lambda}{N} \sum_k \|\max(p(\hat x_k), 0)\|^2
-      + \frac{\nu}{N} \sum_k \|q(\hat x_k)\|^2
-      + \frac{\rho}{n_\ell n_x} \sum_{\ell, i}
-        \frac{(\hat x^{(\ell-1)}_{T,i} - \hat x^{(\ell)}_{0,i})^2}{\varsigma_i^2}
-
-with :math:`|w|_\beta = (\mathrm{softplus}(\beta w) + \mathrm{softplus}(-\beta w))/\beta`,
-a smooth, strictly positive surrogate of :math:`|w|` (its residual
-:math:`\sqrt{\gamma |w|_\beta}` is differentiable everywhere), and the last term the
+with $|w|_\beta = (\mathrm{softplus}(\beta w) + \mathrm{softplus}(-\beta w))/\beta$,
+a smooth, strictly positive surrogate of $|w|$ (its residual
+$\sqrt{\gamma |w|_\beta}$ is differentiable everywhere), and the last term the
 continuity of consecutive shooting windows (only when a ``horizon`` cuts records). The L1
-weight is counted once, not once per time step as in the paper's sum over :math:`k`.
+weight is counted once, not once per time step as in the paper's sum over $k$.
 
 Every term is dimensionless, so that rescaling inputs, outputs, states or a dictionary
-column changes neither the minimiser nor the meaning of the weights: :math:`\sigma_o` is the
-standard deviation of output :math:`o` over the data, :math:`\varsigma_i` a scale of state
-:math:`i` (the spread of the shooting windows' initial states) and :math:`s_{ij}` the RMS
-sensitivity of the normalised simulated output to :math:`\Omega_{ij}`
-(:func:`~sk_offwhite._sparsity.penalty_scale`), so :math:`s_{ij}|\Omega_{ij}|` is the RMS
-change of the simulated output that term :math:`j` of equation :math:`i` makes, in units
+column changes neither the minimiser nor the meaning of the weights: $\sigma_o$ is the
+standard deviation of output $o$ over the data, $\varsigma_i$ a scale of state
+$i$ (the spread of the shooting windows' initial states) and $s_{ij}$ the RMS
+sensitivity of the normalised simulated output to $\Omega_{ij}$
+(`penalty_scale`), so $s_{ij}|\Omega_{ij}|$ is the RMS
+change of the simulated output that term $j$ of equation $i$ makes, in units
 of the output's standard deviation.
 """
 
@@ -56,12 +56,12 @@ __all__ = [
 class CostWeights(NamedTuple):
     r"""Dynamic weights and scales of the cost terms (changing them does not re-trace).
 
-    ``output_scale`` (:math:`\sigma_o`), ``state_scale`` (:math:`\varsigma_i`) and
-    ``penalty_scale`` (:math:`s_{ij}`) broadcast against the outputs, the states and
-    :math:`\Omega`; the defaults (1) leave the terms in the data's own units.
-    ``l1_anchor`` (:math:`\Omega` at the current iterate, set by Levenberg-Marquardt)
-    replaces the smoothed :math:`\ell_1` term by its quadratic majoriser
-    (:func:`majorised_l1`).
+    ``output_scale`` ($\sigma_o$), ``state_scale`` ($\varsigma_i$) and
+    ``penalty_scale`` ($s_{ij}$) broadcast against the outputs, the states and
+    $\Omega$; the defaults (1) leave the terms in the data's own units.
+    ``l1_anchor`` ($\Omega$ at the current iterate, set by Levenberg-Marquardt)
+    replaces the smoothed $\ell_1$ term by its quadratic majoriser
+    (`majorised_l1`).
     """
 
     gamma: float
@@ -76,24 +76,24 @@ class CostWeights(NamedTuple):
 
 
 def smooth_abs(w, beta):
-    r"""Smooth, positive surrogate of :math:`|w|`: :math:`\sqrt{w^2 + \beta^{-2}}`.
+    r"""Smooth, positive surrogate of $|w|$: $\sqrt{w^2 + \beta^{-2}}$.
 
-    It exceeds :math:`|w|` by at most :math:`1/\beta`, and is quadratic for
-    :math:`|w| \ll 1/\beta`.
+    It exceeds $|w|$ by at most $1/\beta$, and is quadratic for
+    $|w| \ll 1/\beta$.
     """
     return jnp.sqrt(w**2 + beta**-2.0)
 
 
 def majorised_l1(scaled, anchor, beta):
-    r"""Residuals and constant of the quadratic majoriser of :math:`\sum_j|x_j|_\beta` at
-    ``anchor`` :math:`a`:
+    r"""Residuals and constant of the quadratic majoriser of $\sum_j|x_j|_\beta$ at
+    ``anchor`` $a$:
 
-    .. math::
+    $$
+    |x|_\beta \le \frac{x^2}{2|a|_\beta} + |a|_\beta - \frac{a^2}{2|a|_\beta},
+    $$
 
-        |x|_\beta \le \frac{x^2}{2|a|_\beta} + |a|_\beta - \frac{a^2}{2|a|_\beta},
-
-    with equality at :math:`x = a` (the square root is concave in :math:`x^2`). Written as
-    residuals :math:`x/\sqrt{2|a|_\beta}` it is exactly quadratic, so Gauss-Newton models it
+    with equality at $x = a$ (the square root is concave in $x^2$). Written as
+    residuals $x/\sqrt{2|a|_\beta}$ it is exactly quadratic, so Gauss-Newton models it
     without error; minimising it and moving the anchor is reweighted least squares, which
     never increases the penalised cost.
     """
@@ -148,7 +148,7 @@ def _sparsity_residual(params, omega_free, weights):
 
 
 def majoriser_constant(omega, omega_free, weights):
-    r"""Constant that makes :math:`\|r\|^2` the majorised cost (0 without an anchor)."""
+    r"""Constant that makes $\|r\|^2$ the majorised cost (0 without an anchor)."""
     if weights.l1_anchor is None or omega is None:
         return jnp.zeros(())
     anchor = weights.l1_anchor * weights.penalty_scale * omega_free
@@ -157,9 +157,9 @@ def majoriser_constant(omega, omega_free, weights):
 
 
 class ResidualParts(NamedTuple):
-    r"""The parts of :func:`residuals`, in stacking order: ``fit`` and the two constraint
+    r"""The parts of `residuals`, in stacking order: ``fit`` and the two constraint
     parts are segment-major (each segment's rows together), ``shooting`` one row block per
-    link between consecutive segments, ``sparsity`` one row per entry of :math:`\Omega`."""
+    link between consecutive segments, ``sparsity`` one row per entry of $\Omega$."""
 
     fit: jax.Array
     shooting: jax.Array
@@ -169,7 +169,7 @@ class ResidualParts(NamedTuple):
 
 
 def residual_parts(model: Model, params: dict, segments, omega_free, weights: CostWeights):
-    """The terms of the cost as residual vectors (:class:`ResidualParts`)."""
+    """The terms of the cost as residual vectors (`ResidualParts`)."""
     states, outputs, finals = rollout_segments(model, params, segments)
     return ResidualParts(
         _fit_residual(outputs, segments, weights.output_scale),
@@ -181,10 +181,10 @@ def residual_parts(model: Model, params: dict, segments, omega_free, weights: Co
 
 
 def residuals(model: Model, params: dict, segments, omega_free, weights: CostWeights):
-    r"""Stacked residual vector :math:`r` with :math:`C = \|r\|^2` (see module docstring)."""
+    r"""Stacked residual vector $r$ with $C = \|r\|^2$ (see module docstring)."""
     return jnp.concatenate(residual_parts(model, params, segments, omega_free, weights))
 
 
 def n_fit_residuals(segments) -> int:
-    """Number of leading entries of :func:`residuals` that are the (normalised) fit errors."""
+    """Number of leading entries of `residuals` that are the (normalised) fit errors."""
     return int(np.prod(np.shape(segments.z)))

@@ -5,14 +5,14 @@ after every step. Each iteration is one jitted call, traced once per fit (the mo
 the layout are static arguments, data and weights are dynamic), so the Python loop only
 keeps the best finite iterate, the loss history and the stopping rules. A quiet
 Levenberg-Marquardt fit runs the same iterations and rules inside one program
-(:mod:`~sk_offwhite._lm_device`); the Python loop :func:`lm_loop` drives ``verbose`` runs
-and the coloured Jacobian of :mod:`~sk_offwhite._structured`.
+(`_lm_device`); the Python loop `lm_loop` drives ``verbose`` runs
+and the coloured Jacobian of `_structured`.
 
-Derivatives: Levenberg-Marquardt needs the residual Jacobian :math:`J` (``R x P``); it is
+Derivatives: Levenberg-Marquardt needs the residual Jacobian $J$ (``R x P``); it is
 built in forward mode (``jacfwd``) when ``P <= R`` (few parameters, long records: the usual
 grey-box case) and in reverse mode otherwise. The optax loop needs only the gradient of
-:math:`\|r\|^2` and uses reverse mode. With many multiple-shooting windows the Jacobian is sparse;
-:mod:`~sk_offwhite._structured` runs the same iteration (:func:`lm_loop`) on a coloured
+$\|r\|^2$ and uses reverse mode. With many multiple-shooting windows the Jacobian is sparse;
+`_structured` runs the same iteration (`lm_loop`) on a coloured
 Jacobian and sparse normal equations.
 """
 
@@ -67,7 +67,7 @@ class Problem(NamedTuple):
 class SolverResult(NamedTuple):
     """Outcome of a solver run: best finite iterate and its diagnostics.
 
-    ``fit`` is the normalised fit term :math:`F` at ``free`` (``nan`` where the solver did
+    ``fit`` is the normalised fit term $F$ at ``free`` (``nan`` where the solver did
     not compute it separately from ``cost``).
     """
 
@@ -94,7 +94,7 @@ def free_residuals(free, problem: Problem, model: Model, layout: Layout):
 
 @partial(jax.jit, static_argnames=("model", "layout", "n_fit"))
 def fit_cost(free, problem: Problem, *, model: Model, layout: Layout, n_fit: int):
-    r"""The fit term :math:`F = \|r_{fit}\|^2` alone (the first ``n_fit`` residuals)."""
+    r"""The fit term $F = \|r_{fit}\|^2$ alone (the first ``n_fit`` residuals)."""
     r = free_residuals(free, problem, model, layout)[:n_fit]
     return r @ r
 
@@ -119,8 +119,8 @@ error of 1e-12 output standard deviations."""
 
 class _LMState(NamedTuple):
     r"""Levenberg-Marquardt's state at ``free``: the residual, the normal equations
-    (:math:`J^TJ`, :math:`J^Tr`), the penalised cost with the L1 term majorised at
-    ``anchor`` (:math:`\Omega` at ``free``) and :math:`\mathrm{diag}(J^TJ)`."""
+    ($J^TJ$, $J^Tr$), the penalised cost with the L1 term majorised at
+    ``anchor`` ($\Omega$ at ``free``) and $\mathrm{diag}(J^TJ)$."""
 
     free: jax.Array
     residual: jax.Array
@@ -137,32 +137,32 @@ def _anchored(problem: Problem, anchor) -> Problem:
 
 
 LM_SCALE_FLOOR = 1e-9
-r"""Marquardt's scaling :math:`D = \mathrm{diag}(J^TJ)` gets this fraction of a largest
-entry added (:func:`damped_diagonal`), so a variable the cost barely sees is not thrown by
+r"""Marquardt's scaling $D = \mathrm{diag}(J^TJ)$ gets this fraction of a largest
+entry added (`damped_diagonal`), so a variable the cost barely sees is not thrown by
 a huge step."""
 
 LM_SCALINGS = ("per-variable", "global")
-"""The rules for the floor of Marquardt's scaling :math:`D` (:func:`damped_diagonal`)."""
+"""The rules for the floor of Marquardt's scaling $D$ (`damped_diagonal`)."""
 
 
 def checked_scaling(scaling: str) -> str:
-    """``scaling`` if it is one of :data:`LM_SCALINGS`, else a ``ValueError``."""
+    """``scaling`` if it is one of `LM_SCALINGS`, else a ``ValueError``."""
     if scaling not in LM_SCALINGS:
         raise ValueError(f"scaling must be one of {LM_SCALINGS}, got {scaling!r}.")
     return scaling
 
 
 def _omega(free, problem: Problem, layout: Layout):
-    r""":math:`\Omega` at the free vector ``free`` (an empty array without a dictionary)."""
+    r"""$\Omega$ at the free vector ``free`` (an empty array without a dictionary)."""
     params = layout.unflatten(problem.base.at[problem.free_index].set(free, mode="drop"))
     return params.get("omega", jnp.zeros(0))
 
 
 LINEARIZE_MAX_FREE = 10
 """Up to this many free variables, and unless the loops are fused
-(:func:`~sk_offwhite.enable_fused_loops`), the forward-mode Jacobian pushes the tangents
-through one linearisation (``jax.linearize``); otherwise through ``jacfwd``
-(:func:`_through_linearisation`). Measured on the Cascaded Tanks cost, 1024 samples (jax
+([`enable_fused_loops`][sk_offwhite.enable_fused_loops]), the forward-mode Jacobian pushes the
+tangents through one linearisation (``jax.linearize``); otherwise through ``jacfwd``
+(`_through_linearisation`). Measured on the Cascaded Tanks cost, 1024 samples (jax
 0.10.2, CPU, XLA's default loops), linearize against jacfwd: 5 free, 0.23 against 1.5 ms;
 19 free, 0.61 against 0.42 ms; 25 free (with a 20-term dictionary), 7.0 against 5.5 ms.
 Tangents one at a time (``lax.map`` of ``jvp``) were slower still (2.7 and 97 ms). With
@@ -174,14 +174,14 @@ in less time (the first fit's first iteration 0.68 against 0.82 s)."""
 
 def _through_linearisation(n_tangents: int) -> bool:
     """Whether the forward-mode Jacobian of ``n_tangents`` columns goes through
-    ``jax.linearize`` rather than ``jacfwd`` (see :data:`LINEARIZE_MAX_FREE`)."""
+    ``jax.linearize`` rather than ``jacfwd`` (see `LINEARIZE_MAX_FREE`)."""
     return n_tangents <= LINEARIZE_MAX_FREE and not fused_loops()
 
 
 def pushed_forward(fun, x, tangents):
     """``(fun(x), J t)`` for each row ``t`` of ``tangents`` (the columns of the result), in
     one pass: through ``jax.linearize`` or a ``vmap`` of ``jvp``, by
-    :func:`_through_linearisation`. The value comes with the tangents, unbatched: ``fun``
+    `_through_linearisation`. The value comes with the tangents, unbatched: ``fun``
     is simulated once."""
     if _through_linearisation(tangents.shape[0]):
         value, linear = jax.linearize(fun, x)
@@ -190,7 +190,7 @@ def pushed_forward(fun, x, tangents):
 
 
 def linearised(fun, x, forward: bool = True):
-    """``(fun(x), Jacobian of fun at x)``: forward mode (:func:`pushed_forward` of the
+    """``(fun(x), Jacobian of fun at x)``: forward mode (`pushed_forward` of the
     identity) or reverse mode (``jacrev``, for problems wider than long). ``fun`` is traced
     once: its value comes out of the differentiation, not from a second call."""
     if forward:
@@ -222,12 +222,12 @@ def _state_at(free, problem: Problem, model: Model, layout: Layout, forward: boo
 
 
 def damped_candidate(free, jtj, gradient, damping, scale, lower, upper):
-    r"""Damped Gauss-Newton step :math:`(J^TJ + \mu D)\,s = -J^Tr` from ``free``,
+    r"""Damped Gauss-Newton step $(J^TJ + \mu D)\,s = -J^Tr$ from ``free``,
     projected on the box ``[lower, upper]``; ``scale`` is the per-variable floors'
-    reference or ``None`` (see :func:`damped_diagonal`).
+    reference or ``None`` (see `damped_diagonal`).
 
-    Variables held at a bound by the gradient (at the lower bound with :math:`J^Tr > 0`,
-    at the upper with :math:`J^Tr < 0`) take no part in the step: the others solve the
+    Variables held at a bound by the gradient (at the lower bound with $J^Tr > 0$,
+    at the upper with $J^Tr < 0$) take no part in the step: the others solve the
     system without them. Clipping a step computed with them in would move the others as
     if the held variable had moved too; measured on the tanks with a dictionary, such runs
     alternated accepted and rejected steps until ``max_iter``."""
@@ -247,7 +247,7 @@ def _majorised_at(free, anchor, problem: Problem, model: Model, layout: Layout):
 
 
 def _unreached(candidate, residual, cost, anchor) -> _LMState:
-    """What :func:`_lm_advance` returns for a rejected candidate: its residual and cost at
+    """What `_lm_advance` returns for a rejected candidate: its residual and cost at
     the old anchor, no normal equations (the iteration reads neither)."""
     n, dtype = candidate.shape[0], candidate.dtype
     zeros = jnp.zeros(n, dtype)
@@ -257,8 +257,8 @@ def _unreached(candidate, residual, cost, anchor) -> _LMState:
 @partial(jax.jit, static_argnames=("model", "layout", "forward"))
 def _lm_advance(origin, damping, scale, step, problem, *, model, layout, forward):
     """One Levenberg-Marquardt iteration in one program. ``origin`` is ``(free, jtj,
-    gradient, anchor, cost)`` of the current state (:func:`_origin`). Returns the LM state
-    at the damped step's candidate (:func:`damped_candidate`; with ``step`` false there is
+    gradient, anchor, cost)`` of the current state (`_origin`). Returns the LM state
+    at the damped step's candidate (`damped_candidate`; with ``step`` false there is
     no step and it is the state at ``free``), the candidate's cost with the L1 term
     majorised at ``anchor`` (below the current cost, the penalised cost has decreased: the
     majoriser is tight at its anchor) and whether the candidate was accepted; the state of
@@ -285,26 +285,26 @@ def _lm_advance(origin, damping, scale, step, problem, *, model, layout, forward
 
 
 def held_at_bound(free, gradient, lower, upper):
-    """Which variables sit on a bound that the descent direction :math:`-\\nabla` points out
+    """Which variables sit on a bound that the descent direction $-\\nabla$ points out
     of (numpy or JAX arrays)."""
     return ((free <= lower) & (gradient > 0)) | ((free >= upper) & (gradient < 0))
 
 
 def damped_diagonal(diag, damping, moving, xp, scale=None):
-    r"""Marquardt's damping :math:`\mu D`, :math:`D = \mathrm{diag}(J^TJ) + \epsilon\,f`
-    (:data:`LM_SCALE_FLOOR`), with 1 on the rows of variables that are not ``moving``
-    (their rows and columns of :math:`J^TJ` are zero, so their step is zero) or that no
+    r"""Marquardt's damping $\mu D$, $D = \mathrm{diag}(J^TJ) + \epsilon\,f$
+    (`LM_SCALE_FLOOR`), with 1 on the rows of variables that are not ``moving``
+    (their rows and columns of $J^TJ$ are zero, so their step is zero) or that no
     residual has depended on yet; ``xp`` is ``numpy`` or ``jax.numpy``. The floor keeps a
     variable the cost barely sees from being thrown by a huge step.
 
-    ``scale=None`` (``lm_scaling='global'``): :math:`f = \max_j (J^TJ)_{jj}`, one floor
+    ``scale=None`` (``lm_scaling='global'``): $f = \max_j (J^TJ)_{jj}$, one floor
     for all variables (``diag`` is that of the moving ones), so the steps depend on their
-    units: a variable in units :math:`10^3` times smaller has a column :math:`10^3` times
+    units: a variable in units $10^3$ times smaller has a column $10^3$ times
     larger and raises everyone else's damping.
 
-    ``scale`` given (``lm_scaling='per-variable'``): :math:`f_i` = ``scale``:math:`_i`,
-    the largest :math:`(J^TJ)_{ii}` variable :math:`i` has had so far in the run
-    (:func:`lm_loop`). :math:`D_i` then carries the units of :math:`1/x_i^2` alone, so
+    ``scale`` given (``lm_scaling='per-variable'``): $f_i$ = ``scale``$_i$,
+    the largest $(J^TJ)_{ii}$ variable $i$ has had so far in the run
+    (`lm_loop`). $D_i$ then carries the units of $1/x_i^2$ alone, so
     rescaling a variable (a state in other units, a dictionary column times a constant)
     leaves the iterates the same up to rounding."""
     if scale is None:
@@ -330,8 +330,8 @@ def levenberg_marquardt(
     verbose: int = 0,
     scaling: str = "per-variable",
 ) -> SolverResult:
-    r"""Projected Levenberg-Marquardt on :math:`\|r(\cdot)\|^2` with the dense Jacobian
-    (see :func:`lm_loop` for the steps and stopping rules)."""
+    r"""Projected Levenberg-Marquardt on $\|r(\cdot)\|^2$ with the dense Jacobian
+    (see `lm_loop` for the steps and stopping rules)."""
     forward = forward_mode(free0, problem, model, layout)
     static = dict(model=model, layout=layout, forward=forward)
 
@@ -350,14 +350,14 @@ def levenberg_marquardt(
 
 
 def _origin(state: _LMState) -> tuple:
-    """What :func:`_lm_advance` steps from: ``(free, jtj, gradient, anchor, cost)``."""
+    """What `_lm_advance` steps from: ``(free, jtj, gradient, anchor, cost)``."""
     return state.free, state.jtj, state.gradient, state.anchor, state.cost
 
 
 def first_state(free, problem: Problem, *, model, layout, forward, scaling) -> _LMState:
-    r"""The LM state at ``free``: :func:`_lm_advance` without a step, so that the run's
+    r"""The LM state at ``free``: `_lm_advance` without a step, so that the run's
     first state and its iterations share one program. Its origin's normal equations and
-    anchor (zeros of :math:`\Omega`'s shape) are never read; ``scale`` is passed as the
+    anchor (zeros of $\Omega$'s shape) are never read; ``scale`` is passed as the
     iterations pass it (an array with per-variable scaling, ``None`` with global)."""
     n = free.shape[0]
     omega_shape = dict(layout.blocks).get("omega", (0,))
@@ -368,13 +368,13 @@ def first_state(free, problem: Problem, *, model, layout, forward, scaling) -> _
 
 
 _residuals_program = jax.jit(free_residuals, static_argnames=("model", "layout"))
-""":func:`free_residuals` jitted, only for its shape: ``eval_shape`` traces it once per
+"""`free_residuals` jitted, only for its shape: ``eval_shape`` traces it once per
 model, layout and array shapes and keeps the trace with the package's other programs."""
 
 
 def forward_mode(free, problem: Problem, model: Model, layout: Layout) -> bool:
     """Whether the Jacobian is formed in forward mode: no more free variables than
-    residuals. The fit residuals alone (the leading :func:`n_fit_residuals`) settle it
+    residuals. The fit residuals alone (the leading `n_fit_residuals`) settle it
     without a trace in the usual case of a record longer than the free vector."""
     if free.shape[0] <= n_fit_residuals(problem.segments):
         return True
@@ -382,15 +382,15 @@ def forward_mode(free, problem: Problem, model: Model, layout: Layout) -> bool:
 
 
 def n_residuals(free, problem: Problem, model: Model, layout: Layout) -> int:
-    """Length of :func:`free_residuals` at ``free`` (traced once per structure and
+    """Length of `free_residuals` at ``free`` (traced once per structure and
     shapes: the closed loop runs many fits of each)."""
     return int(_residuals_program.eval_shape(free, problem, model=model, layout=layout).shape[0])
 
 
 START_DAMPING, DAMPING_DOWN, DAMPING_UP, MAX_DAMPING = 1e-3, 3.0, 4.0, 1e10
 """Marquardt's damping: its start, its divisor after an accepted step and its factor after
-a rejected one, and the value past which no descent step is left (:func:`lm_loop`, and
-the initial-state solver of :mod:`sk_offwhite._initial`)."""
+a rejected one, and the value past which no descent step is left (`lm_loop`, and
+the initial-state solver of `sk_offwhite._initial`)."""
 
 
 def lm_loop(
@@ -399,15 +399,15 @@ def lm_loop(
     r"""The Levenberg-Marquardt iteration over a linearisation and a trial step.
 
     ``linearise(free)`` returns a state with ``free``, ``residual``, ``cost`` and ``diag``
-    (:math:`\mathrm{diag}(J^TJ)`) at ``free``; ``trial(state, damping, scale)`` the
+    ($\mathrm{diag}(J^TJ)$) at ``free``; ``trial(state, damping, scale)`` the
     damped, projected candidate, its cost and the state there when the trial formed it
     (``None``: ``linearise`` forms it if the step is accepted), where ``scale`` is ``None``
     with ``scaling='global'`` and the elementwise largest ``diag`` of the run so far with
-    ``scaling='per-variable'`` (:func:`damped_diagonal`).
+    ``scaling='per-variable'`` (`damped_diagonal`).
 
     Stops when a nearly undamped (Gauss-Newton, damping below ``1``) accepted step lowers
-    the cost by less than ``tol`` (relative), when the cost reaches :data:`ROUNDING_COST`
-    (the cost is dimensionless), or when the damping grows past :data:`MAX_DAMPING` (no
+    the cost by less than ``tol`` (relative), when the cost reaches `ROUNDING_COST`
+    (the cost is dimensionless), or when the damping grows past `MAX_DAMPING` (no
     descent step exists: a stationary point up to numerical precision). A small decrease
     under heavy damping only means the step was short, not that the fit has converged.
     """
@@ -510,12 +510,12 @@ def run_optax(
     patience: int = 100,
     verbose: int = 0,
 ) -> SolverResult:
-    """First-order loop with any optax transformation (``None``: :func:`default_optimizer`),
+    """First-order loop with any optax transformation (``None``: `default_optimizer`),
     keeping the best finite iterate.
 
     Stops after ``patience`` iterations without a relative improvement of ``tol`` of the
     best cost. A non-finite cost ends the loop: the best finite iterate is returned and a
-    :class:`~sklearn.exceptions.ConvergenceWarning` says so.
+    `ConvergenceWarning` says so.
     """
     optimizer = default_optimizer(max_iter) if optimizer is None else optimizer
     static = dict(model=model, layout=layout, optimizer=optimizer)

@@ -36,11 +36,11 @@ def launch(
 ):
     """``function(*args)`` for each tuple of ``arguments``: computed now (one job), or
     started now in ``n_jobs`` worker processes (joblib's convention: ``-1`` all cores),
-    whose results arrive while the caller goes on. Pass the result to :func:`gather`.
+    whose results arrive while the caller goes on. Pass the result to `gather`.
 
     With ``release_after``, each worker drops the package's compiled programs
-    (:func:`~sk_offwhite.release_package_programs`) after each task: workers are reused,
-    and tasks whose structures are not fitted again would otherwise pile theirs up."""
+    ([`release_package_programs`][sk_offwhite.release_package_programs]) after each task: workers
+    are reused, and tasks whose structures are not fitted again would otherwise pile theirs up."""
     tasks = (delayed(_recording)(function, release_after, *args) for args in arguments)
     if effective_n_jobs(n_jobs) == 1:
         return [task(*args, **kwargs) for task, args, kwargs in tasks]
@@ -48,7 +48,7 @@ def launch(
 
 
 def gather(jobs, labels=None, progress: Callable | None = None) -> list:
-    """The values of :func:`launch`'s tasks, in order, each task's warnings issued again
+    """The values of `launch`'s tasks, in order, each task's warnings issued again
     here (prefixed with ``"{label}: "`` when ``labels`` names the tasks); ``progress(k,
     label)`` is called as the ``k``-th value (from 1) arrives."""
     values = []
@@ -69,10 +69,10 @@ def _ready(module: str) -> str:
 
 
 def start_workers(n_jobs: int | None, module: str = "sk_offwhite.loop"):
-    """Start the ``n_jobs`` worker processes of :func:`launch` now, each importing
+    """Start the ``n_jobs`` worker processes of `launch` now, each importing
     ``module``, and return at once: the caller goes on with its own work while they start
     (about 2 s each on a small machine, most of it importing JAX and scikit-learn). Pass
-    the result to :func:`gather` before the first :func:`launch` that should find them
+    the result to `gather` before the first `launch` that should find them
     ready. With one job there is nothing to start (an empty list)."""
     workers = effective_n_jobs(n_jobs)
     if workers == 1:

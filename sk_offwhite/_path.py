@@ -1,12 +1,12 @@
-r"""The support path: fits over a grid of :math:`\gamma` relative to :math:`\gamma_{max}`.
+r"""The support path: fits over a grid of $\gamma$ relative to $\gamma_{max}$.
 
-For each :math:`\gamma` of a geometric grid from :math:`\gamma_{max}` (the smallest value for
-which the correction is empty) down to :math:`\epsilon\,\gamma_{max}`, the estimator is
+For each $\gamma$ of a geometric grid from $\gamma_{max}$ (the smallest value for
+which the correction is empty) down to $\epsilon\,\gamma_{max}$, the estimator is
 fitted on the whole record and, with ``cv``, on the training part of every fold; each fold's
-fit is scored by simulating its held-out block. The result holds, per :math:`\gamma`, the
+fit is scored by simulating its held-out block. The result holds, per $\gamma$, the
 support, the coefficients, the estimation and cross-validated errors: what a person plots
-to choose, and what :func:`fit_gamma_path` chooses from (lowest mean CV error, or the
-sparsest model within one standard error of it).
+to choose, and what [`fit_gamma_path`][sk_offwhite.fit_gamma_path] chooses from (lowest mean CV
+error, or the sparsest model within one standard error of it).
 """
 
 from __future__ import annotations
@@ -32,9 +32,9 @@ standard deviations of the measured block (ten times worse than predicting its m
 
 
 def gamma_grid(gamma_max: float, n_gammas: int = 8, eps: float = 1e-6) -> np.ndarray:
-    r"""Geometric grid :math:`\gamma_{max}\,\epsilon^{k/(n-1)}`, :math:`k = 0, \dots, n-1`.
+    r"""Geometric grid $\gamma_{max}\,\epsilon^{k/(n-1)}$, $k = 0, \dots, n-1$.
 
-    As scikit-learn's ``lasso_path`` grid of :math:`\alpha`: decreasing, from the value at
+    As scikit-learn's ``lasso_path`` grid of $\alpha$: decreasing, from the value at
     which the correction is empty to ``eps`` times it.
     """
     if not np.isfinite(gamma_max) or gamma_max <= 0:
@@ -56,16 +56,16 @@ def _check_gammas(gammas) -> np.ndarray:
 
 @dataclass
 class GammaPath:
-    r"""Fits along a grid of :math:`\gamma` (see :func:`fit_gamma_path`).
+    r"""Fits along a grid of $\gamma$ (see [`fit_gamma_path`][sk_offwhite.fit_gamma_path]).
 
     Attributes
     ----------
     gammas : ndarray of shape (n_gammas,)
-        The grid, up to where the path ended (see :func:`fit_gamma_path`).
+        The grid, up to where the path ended (see [`fit_gamma_path`][sk_offwhite.fit_gamma_path]).
     gamma_max : float
-        :math:`\gamma_{max}` of the whole record (``nan`` when ``gammas`` were given).
+        $\gamma_{max}$ of the whole record (``nan`` when ``gammas`` were given).
     coefs : ndarray of shape (n_gammas, n_delta_states, n_features)
-        ``coef_`` of the whole-record fit at each :math:`\gamma` (``nan`` where that fit
+        ``coef_`` of the whole-record fit at each $\gamma$ (``nan`` where that fit
         failed: a warning names it and the path goes on).
     train_error : ndarray of shape (n_gammas,)
         RMS free-run simulation error on the whole record from the fitted initial state, in
@@ -74,25 +74,25 @@ class GammaPath:
         RMS simulation error of each fold's held-out block (initial state estimated from
         its first ``init_window`` samples, which are not scored), in output standard
         deviations; ``inf`` where the simulation diverged, and (``stop_at_divergence``)
-        at every smaller :math:`\gamma` of that fold and every fold's after the first
-        :math:`\gamma` at which one diverged (unless that is the grid's first), which are
+        at every smaller $\gamma$ of that fold and every fold's after the first
+        $\gamma$ at which one diverged (unless that is the grid's first), which are
         not fitted.
     best_index : int or None
-        The chosen :math:`\gamma` (``None`` without ``cv``).
+        The chosen $\gamma$ (``None`` without ``cv``).
     feature_names : list of str
     estimator : GreyBoxSparseRegressor
-        The estimator passed in, fitted at the chosen :math:`\gamma` (without ``cv``: at
+        The estimator passed in, fitted at the chosen $\gamma$ (without ``cv``: at
         the last one).
     cv_rmse : ndarray of shape (n_gammas, n_folds) or None
         The same held-out errors in the output's units (RMS over outputs and samples, as
-        :func:`~sk_offwhite.loop.held_out_rmse` scores a block); a diverged simulation
-        scores :data:`DIVERGED_FACTOR` standard deviations of its block, a failed fit
+        [`held_out_rmse`][sk_offwhite.loop.held_out_rmse] scores a block); a diverged simulation
+        scores `DIVERGED_FACTOR` standard deviations of its block, a failed fit
         ``inf``.
     start : {'continuation', 'reference'}
         Where the returned fit started: the path's continuation from the larger
-        :math:`\gamma`, or (with ``cv`` only) the physics reference, as every fold's fit
-        starts (see :func:`fit_gamma_path`); ``coefs`` and ``train_error`` at the chosen
-        :math:`\gamma` are those of the returned fit.
+        $\gamma$, or (with ``cv`` only) the physics reference, as every fold's fit
+        starts (see [`fit_gamma_path`][sk_offwhite.fit_gamma_path]); ``coefs`` and ``train_error``
+        at the chosen $\gamma$ are those of the returned fit.
     """
 
     gammas: np.ndarray
@@ -113,7 +113,7 @@ class GammaPath:
 
     @property
     def n_nonzero(self) -> np.ndarray:
-        """Number of terms kept at each :math:`\\gamma`."""
+        """Number of terms kept at each $\\gamma$."""
         return self.supports.reshape(len(self.gammas), -1).sum(axis=1)
 
     @property
@@ -139,7 +139,7 @@ class GammaPath:
         ]
 
     def summary(self) -> str:
-        """One line per :math:`\\gamma`: terms kept, estimation and CV error, the choice."""
+        """One line per $\\gamma$: terms kept, estimation and CV error, the choice."""
         lines = [f"{'gamma':>10s} {'terms':>5s} {'train':>9s} {'cv mean':>9s} {'cv std':>9s}"]
         for k, gamma in enumerate(self.gammas):
             cv = "" if self.cv_error is None else f" {self.cv_mean[k]:9.4g} {self.cv_std[k]:9.4g}"
@@ -152,8 +152,8 @@ class GammaPath:
 def held_out_errors(est: GreyBoxSparseRegressor, u, z, init_window: int) -> np.ndarray:
     """RMS free-run error of one block after ``init_window`` samples (its initial state
     estimated from them): in output standard deviations (``inf`` if it diverged) and in
-    the output's units (:data:`DIVERGED_FACTOR` standard deviations of ``z`` if it
-    diverged); the second is what :func:`~sk_offwhite.loop.held_out_rmse` scores."""
+    the output's units (`DIVERGED_FACTOR` standard deviations of ``z`` if it
+    diverged); the second is what [`held_out_rmse`][sk_offwhite.loop.held_out_rmse] scores."""
     z = np.asarray(z, float).reshape(len(u), -1)
     with np.errstate(over="ignore", invalid="ignore"):
         z_init = z[:init_window] if init_window else None
@@ -178,10 +178,10 @@ def _blocks(index: np.ndarray) -> list[np.ndarray]:
 def _fold_errors(
     est, u, z, train, test, gammas, init_window, min_improvement, stop_at_divergence=False
 ) -> np.ndarray:
-    r"""Held-out errors at every :math:`\gamma` of one fold (fits on ``train`` only), shape
+    r"""Held-out errors at every $\gamma$ of one fold (fits on ``train`` only), shape
     ``(n_gammas, 2)``: in output standard deviations and in the output's units; ``inf``
     where the fold's fit failed (with a warning that names the error). The fold's own path
-    ends as the whole record's does (:func:`_changes`); the :math:`\gamma` after its end
+    ends as the whole record's does (`_changes`); the $\gamma$ after its end
     keep its last model's errors. With ``stop_at_divergence`` it also ends at its first
     ``inf`` (a failed fit or a diverged held-out simulation), the rest ``inf`` unfitted."""
     fold = _FoldPath(est, u, z, train, test, init_window, min_improvement, stop_at_divergence)
@@ -189,8 +189,8 @@ def _fold_errors(
 
 
 class _FoldPath:
-    r"""One fold's path, a :math:`\gamma` at a time (:meth:`step`), so that the folds can
-    advance together (:func:`_folds_together`); arguments as :func:`_fold_errors`."""
+    r"""One fold's path, a $\gamma$ at a time (`step`), so that the folds can
+    advance together (`_folds_together`); arguments as `_fold_errors`."""
 
     def __init__(self, est, u, z, train, test, init_window, min_improvement, stop):
         self.est, self.u, self.z, self.train, self.test = est, u, z, train, test
@@ -227,10 +227,10 @@ class _FoldPath:
 
 
 def _folds_together(arguments, stop_at_divergence: bool) -> np.ndarray:
-    r"""Every fold's :func:`_fold_errors` (``arguments``: one tuple of its arguments per
+    r"""Every fold's `_fold_errors` (``arguments``: one tuple of its arguments per
     fold), shape ``(n_folds, n_gammas, 2)``, the folds advanced together one
-    :math:`\gamma` at a time. With ``stop_at_divergence`` none is fitted after
-    :func:`_divergence` (:func:`_choose` cannot choose there): those errors are ``inf``."""
+    $\gamma$ at a time. With ``stop_at_divergence`` none is fitted after
+    `_divergence` (`_choose` cannot choose there): those errors are ``inf``."""
     gammas = arguments[0][5]
     folds = [_FoldPath(*args[:5], *args[6:8], stop_at_divergence) for args in arguments]
     errors = np.full((len(folds), len(gammas), 2), np.inf)
@@ -242,9 +242,9 @@ def _folds_together(arguments, stop_at_divergence: bool) -> np.ndarray:
 
 
 def _divergence(errors: np.ndarray) -> int | None:
-    r"""Index of the first :math:`\gamma` at which a fold's error is not finite (``errors``
+    r"""Index of the first $\gamma$ at which a fold's error is not finite (``errors``
     of shape ``(n_folds, n_gammas, 2)``), when every fold's first is finite; ``None``
-    otherwise. With ``stop_at_divergence`` :func:`_choose` chooses before it."""
+    otherwise. With ``stop_at_divergence`` `_choose` chooses before it."""
     finite = np.all(np.isfinite(errors[..., 0]), axis=0)
     if not finite[0] or np.all(finite):
         return None
@@ -252,7 +252,7 @@ def _divergence(errors: np.ndarray) -> int | None:
 
 
 def _cut_at_divergence(errors: np.ndarray) -> np.ndarray:
-    """``errors`` (as :func:`_folds_together`'s) ``inf`` after :func:`_divergence`: folds
+    """``errors`` (as `_folds_together`'s) ``inf`` after `_divergence`: folds
     fitted apart report what folds fitted together do."""
     index = _divergence(errors)
     if index is not None:
@@ -262,7 +262,7 @@ def _cut_at_divergence(errors: np.ndarray) -> np.ndarray:
 
 
 def _changes(fit_error: float, previous: float, min_improvement: float) -> bool:
-    r"""Whether a smaller :math:`\gamma` changed the fit: the fit error moved by more than
+    r"""Whether a smaller $\gamma$ changed the fit: the fit error moved by more than
     ``min_improvement`` of its previous value (always, with ``min_improvement=0``). A fit
     that got worse has moved to another minimum (the vehicle's path goes from a wrong
     4-term support to Δ's 3 terms that way): the path goes on."""
@@ -277,8 +277,8 @@ def _block_errors(est, u, z, block, init_window) -> np.ndarray:
 def _choose(
     cv_error: np.ndarray, gammas: np.ndarray, one_standard_error: bool, stop_at_divergence: bool
 ) -> int:
-    """Lowest mean CV error, or the largest :math:`\\gamma` within one standard error; with
-    ``stop_at_divergence``, among the :math:`\\gamma` before the first whose mean is not
+    """Lowest mean CV error, or the largest $\\gamma$ within one standard error; with
+    ``stop_at_divergence``, among the $\\gamma$ before the first whose mean is not
     finite (all of them if that is the first)."""
     mean, std = _fold_statistics(cv_error)
     if not np.any(np.isfinite(mean)):
@@ -313,8 +313,8 @@ def _splits(cv, n_samples: int) -> list[tuple[np.ndarray, np.ndarray]]:
 
 
 def _whole_record_path(est, u, z, gammas, sample_index, min_improvement):
-    r"""Fit at every :math:`\gamma` on the whole record until a smaller one no longer changes
-    the fit (:func:`_changes`); snapshots of the fitted estimator (``None`` where a fit
+    r"""Fit at every $\gamma$ on the whole record until a smaller one no longer changes
+    the fit (`_changes`); snapshots of the fitted estimator (``None`` where a fit
     failed) and their estimation errors."""
     snapshots, errors, previous = [], [], None
     for gamma in gammas:
@@ -339,7 +339,7 @@ def _whole_record_path(est, u, z, gammas, sample_index, min_improvement):
 
 
 def penalised_objective(est: GreyBoxSparseRegressor) -> float:
-    r""":math:`F + \gamma\sum_{ij} s_{ij}|\Omega_{ij}|` of a fitted estimator: the objective
+    r"""$F + \gamma\sum_{ij} s_{ij}|\Omega_{ij}|$ of a fitted estimator: the objective
     every fit of the path minimises (``fit_error_`` squared, ``penalty_scale_``), with exact
     absolute values."""
     penalty = np.sum(np.asarray(est.penalty_scale_) * np.abs(np.asarray(est.coef_)))
@@ -347,11 +347,11 @@ def penalised_objective(est: GreyBoxSparseRegressor) -> float:
 
 
 def _better_start(snapshot: GreyBoxSparseRegressor, u, z, sample_index, reference=None):
-    r"""``(fit, start)``: ``snapshot`` (the path's continuation at its :math:`\gamma`) or the
-    same :math:`\gamma` fitted from the physics reference, whichever reaches the lower
-    :func:`penalised_objective` (by more than :data:`RESTART_MARGIN` of it); why, in
-    :func:`fit_gamma_path`. ``reference`` is the path's cached physics-only stage (the
-    estimator's ``_reference``), which the fit from the reference then does not redo; the
+    r"""``(fit, start)``: ``snapshot`` (the path's continuation at its $\gamma$) or the
+    same $\gamma$ fitted from the physics reference, whichever reaches the lower
+    `penalised_objective` (by more than `RESTART_MARGIN` of it); why, in
+    [`fit_gamma_path`][sk_offwhite.fit_gamma_path]. ``reference`` is the path's cached physics-only
+    stage (the estimator's ``_reference``), which the fit from the reference then does not redo; the
     copy shares the snapshot's physics and library, so no program is traced again."""
     try:
         with warnings.catch_warnings(record=True) as caught:
@@ -370,7 +370,7 @@ def _better_start(snapshot: GreyBoxSparseRegressor, u, z, sample_index, referenc
 
 
 RESTART_MARGIN = 1e-9
-"""Relative decrease of :func:`penalised_objective` a fit from the physics reference must
+"""Relative decrease of `penalised_objective` a fit from the physics reference must
 bring to replace the continuation's (below it the two are the same optimum up to rounding)."""
 
 
@@ -391,58 +391,58 @@ def fit_gamma_path(
     stop_at_divergence: bool = True,
     restart: bool | None = None,
 ) -> GammaPath:
-    r"""Fit ``estimator`` along a grid of :math:`\gamma` and (with ``cv``) choose one.
+    r"""Fit ``estimator`` along a grid of $\gamma$ and (with ``cv``) choose one.
 
-    The grid is fitted in order, each :math:`\gamma` from the previous one's solution
+    The grid is fitted in order, each $\gamma$ from the previous one's solution
     (continuation; the first from the physics-only fit, which is computed once per record,
-    see :mod:`sk_offwhite._sparsity`). Continuation matters: a correction whose terms
-    partly cancel (large weights, small sum) costs much :math:`\ell_1` norm, and a fit
-    started from :math:`\Omega = 0` at a small :math:`\gamma` can settle in another local
+    see `sk_offwhite._sparsity`). Continuation matters: a correction whose terms
+    partly cancel (large weights, small sum) costs much $\ell_1$ norm, and a fit
+    started from $\Omega = 0$ at a small $\gamma$ can settle in another local
     minimum, while a path that grows the support term by term reaches it.
 
     With ``min_improvement > 0`` the path ends early, as glmnet's does, at the first
-    :math:`\gamma_{k+1}` whose fit error :math:`e_{k+1}` (``fit_error_``, the RMS
+    $\gamma_{k+1}$ whose fit error $e_{k+1}$ (``fit_error_``, the RMS
     multi-step fit residual in output standard deviations) is within
-    :math:`\text{min\_improvement}\,e_k` of :math:`e_k`: a weaker penalty that changes no
+    $\text{min\_improvement}\,e_k$ of $e_k$: a weaker penalty that changes no
     fit only loosens the correction. Below that point the
     fits differ by where the solver stops in directions the data do not determine, so a
     change of units or of rounding picks another model, and the CV errors there are as
     erratic.
-    :math:`\gamma_{k+1}` and the smaller values are left out of the result; each CV fold
+    $\gamma_{k+1}$ and the smaller values are left out of the result; each CV fold
     ends its own path by the same rule and keeps its last model's held-out errors.
 
-    With ``cv``, the fit returned at the chosen :math:`\gamma` has two starts: the path's
+    With ``cv``, the fit returned at the chosen $\gamma$ has two starts: the path's
     continuation and the physics reference, from which every fold's fit starts (the kind
     of fit the CV scored); the one with the lower penalised objective
-    :math:`F + \gamma\sum s|\Omega|` is kept (``GammaPath.start`` says which).
-    Continuation can carry a support from a larger :math:`\gamma` into a basin the data no
+    $F + \gamma\sum s|\Omega|$ is kept (``GammaPath.start`` says which).
+    Continuation can carry a support from a larger $\gamma$ into a basin the data no
     longer support (the noise-free vehicle, seed 4: a wrong 3-term support at fit error
     3.1e-3 against Δ's 3 terms at 3.2e-14 from the reference). Without ``cv`` the last
-    :math:`\gamma`'s continuation is returned (``restart=None``): nothing has scored a fit
-    from the reference there, and at a tiny :math:`\gamma` on noisy data its lower
+    $\gamma$'s continuation is returned (``restart=None``): nothing has scored a fit
+    from the reference there, and at a tiny $\gamma$ on noisy data its lower
     objective is a fit of the noise (the noisy vehicle, 2000 samples, no CV: θ error 0.80
     against the continuation's 0.0023). On noise-free data ``restart=True`` asks for the
     two starts there too: which basin the continuation ends in can depend on rounding (the
     noise-free vehicle, seed 0, on one of two processors measured: a wrong 3-term support
     at fit error 2.3e-3, while the reference start reaches Δ's 3 terms at 3e-15 at every
-    :math:`\gamma` below 2e-6).
+    $\gamma$ below 2e-6).
 
     Parameters
     ----------
     estimator : GreyBoxSparseRegressor
-        With a ``library``; fitted in place, left at the chosen :math:`\gamma`.
+        With a ``library``; fitted in place, left at the chosen $\gamma$.
     u, z : array-like
-        One record, as for :meth:`GreyBoxSparseRegressor.fit`.
+        One record, as for [`GreyBoxSparseRegressor.fit`][sk_offwhite.GreyBoxSparseRegressor.fit].
     gammas : array-like, default=None
-        The grid. ``None``: :func:`gamma_grid` (``n_gammas`` values from
-        :math:`\gamma_{max}` of the record down to ``eps`` times it).
+        The grid. ``None``: [`gamma_grid`][sk_offwhite.gamma_grid] (``n_gammas`` values from
+        $\gamma_{max}$ of the record down to ``eps`` times it).
     n_gammas : int, default=8
     eps : float, default=1e-6
     cv : int or cross-validation splitter, default=None
         Folds of contiguous blocks (an int means ``KFold(cv)``, unshuffled). ``None``: no
-        selection, the estimator is left at the last :math:`\gamma`.
+        selection, the estimator is left at the last $\gamma$.
     one_standard_error : bool, default=False
-        Choose the largest :math:`\gamma` (the sparsest model) whose mean CV error is
+        Choose the largest $\gamma$ (the sparsest model) whose mean CV error is
         within one standard error of the lowest, instead of the lowest.
     init_window : int, default=None
         Samples that estimate each held-out block's initial state (not scored); ``None``
@@ -453,29 +453,30 @@ def fit_gamma_path(
         Processes that fit the CV folds (joblib's convention: ``None`` one, ``-1`` all
         cores) while this one fits the whole record. The numbers are the same as with one
         (each fold is the same computation); the workers compile their own programs unless
-        the persistent cache is on (:func:`~sk_offwhite.enable_compilation_cache`).
+        the persistent cache is on
+        ([`enable_compilation_cache`][sk_offwhite.enable_compilation_cache]).
     min_improvement : float, default=0.0
-        Relative change of the fit error a smaller :math:`\gamma` must bring for the path to
+        Relative change of the fit error a smaller $\gamma$ must bring for the path to
         go on (dimensionless, e.g. 1e-3); 0 fits the whole grid, as does a grid that is not
         decreasing. Off by default: a non-convex path can stay flat for several
-        :math:`\gamma` and then reach a better support (the noise-free vehicle of Section
-        5.1 keeps a wrong 4-term support for three :math:`\gamma`, then finds Δ's 3 terms
+        $\gamma$ and then reach a better support (the noise-free vehicle of Section
+        5.1 keeps a wrong 4-term support for three $\gamma$, then finds Δ's 3 terms
         with a fit error of 1e-13), which an early end would miss.
     stop_at_divergence : bool, default=True
-        Choose only among the :math:`\gamma` before the first one whose mean CV error is
+        Choose only among the $\gamma$ before the first one whose mean CV error is
         not finite (a fold's held-out simulation diverged, or a fold's or the whole
         record's fit failed), and fit no fold below its own first divergence, nor any
-        below the first :math:`\gamma` at which one diverged (when each fold's first
-        :math:`\gamma` is finite; their errors there are ``inf``). There the
+        below the first $\gamma$ at which one diverged (when each fold's first
+        $\gamma$ is finite; their errors there are ``inf``). There the
         penalty no longer keeps the correction stable off the data it was fitted on, and
-        a smaller :math:`\gamma` only loosens it further: a finite CV error below that
+        a smaller $\gamma$ only loosens it further: a finite CV error below that
         point is the luck of where each fold's fit stopped (measured on the Cascaded Tanks
-        with a degree-2 dictionary: the folds diverge at :math:`1.05\cdot10^{-4}` and
-        :math:`1.46\cdot10^{-5}`, not at :math:`2.03\cdot10^{-6}`, then again below, and
+        with a degree-2 dictionary: the folds diverge at $1.05\cdot10^{-4}$ and
+        $1.46\cdot10^{-5}$, not at $2.03\cdot10^{-6}$, then again below, and
         a choice there changed with the units of the data). ``False`` chooses among every
         finite mean, as before.
     restart : bool, default=None
-        Fit the returned :math:`\gamma` from the physics reference too and keep the lower
+        Fit the returned $\gamma$ from the physics reference too and keep the lower
         penalised objective (see above). ``None``: only with ``cv``.
 
     Returns
@@ -550,15 +551,15 @@ def fit_gamma_path(
 
 
 def _grid(estimator, u, z, n_gammas: int, eps: float, sample_index) -> tuple[np.ndarray, float]:
-    """``(grid, gamma_max)``: the :func:`gamma_grid` of ``n_gammas`` values below the
-    record's :math:`\\gamma_{max}` (the physics-only fit's, which is computed for it)."""
+    """``(grid, gamma_max)``: the [`gamma_grid`][sk_offwhite.gamma_grid] of ``n_gammas`` values
+    below the record's $\\gamma_{max}$ (the physics-only fit's, which is computed for it)."""
     estimator._fit(u, z, sample_index, reference_only=True)
     return gamma_grid(estimator.gamma_max_, n_gammas, eps), estimator.gamma_max_
 
 
 def _fold_scores(folds: np.ndarray, failed: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(cv_error, cv_rmse)`` of shape ``(n_gammas, n_folds)`` from the folds' errors
-    (:func:`_folds_together`'s shape, cut to the whole record's ``len(failed)`` γ):
+    (`_folds_together`'s shape, cut to the whole record's ``len(failed)`` γ):
     ``inf`` at the γ whose fit on the whole record ``failed``."""
     cv_error, cv_rmse = np.moveaxis(folds, (2, 0), (0, 2))[:, : len(failed)]
     cv_error[failed], cv_rmse[failed] = np.inf, np.inf

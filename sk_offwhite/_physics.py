@@ -1,14 +1,14 @@
 r"""The user's physics: a discrete-time state-space model with named parameters.
 
-A :class:`PhysicsModel` holds
+A [`PhysicsModel`][sk_offwhite.PhysicsModel] holds
 
-.. math::
+$$
+x_{k+1} = f(x_k, u_k; \theta), \qquad z_k = h(x_k, u_k; \theta),
+$$
 
-    x_{k+1} = f(x_k, u_k; \theta), \qquad z_k = h(x_k, u_k; \theta),
-
-with named physical parameters :math:`\theta` (value, bounds, fixed flag), an initial-state
-guess :math:`x_0` and optional physics constraints :math:`p(x, u; \theta) \le 0` and
-:math:`q(x, u; \theta) = 0`. The functions are written with ``jax.numpy`` and receive
+with named physical parameters $\theta$ (value, bounds, fixed flag), an initial-state
+guess $x_0$ and optional physics constraints $p(x, u; \theta) \le 0$ and
+$q(x, u; \theta) = 0$. The functions are written with ``jax.numpy`` and receive
 ``theta`` as a ``dict`` mapping parameter names to scalars.
 """
 
@@ -44,7 +44,7 @@ class Parameter:
     relaxable : bool, default=False
         For a fixed parameter, a constant written into a declared law (Torricelli's 1/2,
         a laminar exponent of 1, a nominal gain) that the closed loop may free, within
-        ``bounds``, as a candidate change of that law (:class:`~sk_offwhite.RelaxedLaw`),
+        ``bounds``, as a candidate change of that law ([`RelaxedLaw`][sk_offwhite.RelaxedLaw]),
         kept only if it lowers the cross-validated error.
     """
 
@@ -152,7 +152,7 @@ class MeasuredStates:
 
 def measured_states(output) -> tuple[int, ...] | None:
     """The state each output reads when the output map is a reading of states (it has the
-    ``indices`` of :class:`MeasuredStates`), else ``None``."""
+    ``indices`` of `MeasuredStates`), else ``None``."""
     return getattr(output, "indices", None)
 
 
@@ -168,7 +168,8 @@ class PhysicsModel:
         ``output(x, u, theta) -> z`` of shape ``(n_outputs,)``, or the indices of the
         measured states (``z = x[output]``).
     parameters : dict
-        Maps each parameter name to a float (initial guess) or a :class:`Parameter`.
+        Maps each parameter name to a float (initial guess) or a
+        [`Parameter`][sk_offwhite.Parameter].
     n_states : int
         Dimension of the state ``x``.
     n_inputs : int
@@ -187,7 +188,7 @@ class PhysicsModel:
         ``q(x, u, theta) -> array`` that should stay ``== 0`` along the trajectory.
     state_kinds, input_kinds : sequence of str, default=None
         Physical kind of each state and input, one of
-        :data:`~sk_offwhite._kinds.KINDS` (``"level"``, ``"position"``, ``"velocity"``,
+        `KINDS` (``"level"``, ``"position"``, ``"velocity"``,
         ``"angle"``, ``"rate"``, ``"force"``, ``"torque"``, ``"flow"``, ``"voltage"``,
         ``"current"``, ``"temperature"``, ``"generic"``); ``None``: all ``"generic"``. The
         closed loop proposes only the missing effects that make sense for a kind.
@@ -265,7 +266,7 @@ class PhysicsModel:
     def linear(cls, n_inputs: int, n_outputs: int) -> PhysicsModel:
         """Black-box linear state-space model used when no physics is given.
 
-        One state per output: :math:`x_{k+1} = A x_k + B u_k + b`, :math:`z_k = x_k + D u_k`,
+        One state per output: $x_{k+1} = A x_k + B u_k + b$, $z_k = x_k + D u_k$,
         with every entry of ``A, B, b, D`` a named parameter (``A[i,j]`` etc.), ``A`` started
         at zero. It makes the estimator usable (and checkable) without a physical model.
         """
@@ -302,7 +303,8 @@ class PhysicsModel:
         return np.array([lo for lo, _ in pairs]), np.array([hi for _, hi in pairs])
 
     def with_parameters(self, **updates) -> PhysicsModel:
-        """Copy of the model with some parameters replaced (floats or :class:`Parameter`)."""
+        """Copy of the model with some parameters replaced (floats or
+        [`Parameter`][sk_offwhite.Parameter])."""
         clone = self.__class__.__new__(self.__class__)
         clone.__dict__.update(self.__dict__)
         clone.parameters = dict(self.parameters)
@@ -350,8 +352,8 @@ class DiscretizedStep:
     r"""Zero-order-hold discretisation of ``rhs`` with ``n_substeps`` integrator steps.
 
     With step ``dt = sampling_time / n_substeps`` each sub-step applies explicit Euler,
-    :math:`x \leftarrow x + dt\, r(x)`, or classical RK4,
-    :math:`x \leftarrow x + dt (k_1 + 2k_2 + 2k_3 + k_4) / 6`.
+    $x \leftarrow x + dt\, r(x)$, or classical RK4,
+    $x \leftarrow x + dt (k_1 + 2k_2 + 2k_3 + k_4) / 6$.
     """
 
     def __init__(self, rhs: StepFn, sampling_time: float, method: str, n_substeps: int):
@@ -379,7 +381,8 @@ class DiscretizedStep:
 
 
 class LinearStateSpace:
-    """Step or output map of :meth:`PhysicsModel.linear` (picklable, compared by value)."""
+    """Step or output map of [`PhysicsModel.linear`][sk_offwhite.PhysicsModel.linear] (picklable,
+    compared by value)."""
 
     def __init__(self, n_inputs: int, n_outputs: int, part: str):
         self.n_inputs, self.n_outputs, self.part = int(n_inputs), int(n_outputs), part

@@ -1,8 +1,8 @@
 """From validated data and user settings to a solved minimisation (the pure core of ``fit``).
 
-Data flow: ``physics`` + ``basis`` -> :class:`~sk_offwhite._rollout.Model` (static
-structure); records -> :class:`~sk_offwhite._segments.Segments`; initial values, free masks
-and bounds per block -> :class:`~sk_offwhite._optim.Problem`; solver -> fitted blocks.
+Data flow: ``physics`` + ``basis`` -> `Model` (static
+structure); records -> `Segments`; initial values, free masks
+and bounds per block -> `Problem`; solver -> fitted blocks.
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ free variables and the optax loop above."""
 
 STRUCTURED_MIN_FREE = 100
 """With shooting windows, Levenberg-Marquardt over more free variables than this uses the
-coloured Jacobian of :mod:`~sk_offwhite._structured`. Measured on the tanks with horizon 32
+coloured Jacobian of `_structured`. Measured on the tanks with horizon 32
 (2 states, 3 parameters): 2000 samples (255 free), 3.3 s dense against 1.7 s coloured,
 the same parameters to 5 digits; 6000 samples (379 free), 65 s against 2.7 s."""
 
@@ -82,7 +82,7 @@ def _switched(physics: PhysicsModel) -> tuple[Switched, ...]:
 def _board_multiple(physics: PhysicsModel) -> int:
     """The multiple to which the solver pads the free vector of ``physics``
     (``Model.free_multiple``): 1 without switched effects; with them, its parameters other
-    than the switches plus its states, rounded up to :data:`~sk_offwhite._lm_device.PAD_TO`.
+    than the switches plus its states, rounded up to `PAD_TO`.
 
     A fit on the board frees at most that many variables on the whole record (every
     parameter and one initial state), so every switch setting pads to the same size and
@@ -98,7 +98,7 @@ def _board_multiple(physics: PhysicsModel) -> int:
 
 def _window_initial_states(model, blocks, records, segments, horizon):
     """Initial states of every segment of each record: a free run of the initial guess, or,
-    where that run explodes (:func:`~sk_offwhite._start.within_reach`), the record's first
+    where that run explodes (`within_reach`), the record's first
     state with the directly measured states set to the measurement at the window's start;
     the states the inputs determine (a dead time's past commands) where the record's
     inputs put them."""
@@ -127,9 +127,9 @@ def _window_initial_states(model, blocks, records, segments, horizon):
 def initial_state_guess(base, model, u_first, z_first, theta: dict, fixed=None) -> np.ndarray:
     """``base`` with its non-fixed states set from a record's first sample: the directly
     measured ones to the first measurement ``z_first`` (when ``model.output`` is
-    :class:`~sk_offwhite._physics.MeasuredStates`) and the readings of slow sensors
-    (:class:`~sk_offwhite.SensorLag`) to it too, the hidden ones where the first input
-    ``u_first`` starts them (:func:`~sk_offwhite._hidden.hidden_start`, ``theta`` the
+    `MeasuredStates`) and the readings of slow sensors
+    ([`SensorLag`][sk_offwhite.SensorLag]) to it too, the hidden ones where the first input
+    ``u_first`` starts them (`hidden_start`, ``theta`` the
     parameters by name). ``model`` is a physics or a compiled model (its ``step`` and
     ``output``)."""
     guess = np.array(base, dtype=float)
@@ -175,7 +175,7 @@ def initial_blocks(physics, basis, model, records, segments, horizon, warm=None)
 
     Each record starts from ``physics.x0`` with its measured states set to the record's
     first measurement and its hidden states where its first input starts them
-    (:func:`initial_state_guess`). ``warm`` (blocks of an earlier fit, its
+    (`initial_state_guess`). ``warm`` (blocks of an earlier fit, its
     per-record initial states under ``"starts"``, its ``theta`` a vector or a mapping by
     parameter name) replaces these values where the shapes or names agree; fixed
     parameters keep their declared values.
@@ -216,7 +216,7 @@ def free_blocks(physics, basis, model, segments) -> dict:
 def bound_blocks(physics, blocks, records, segments) -> tuple[dict, dict]:
     """Lower and upper bound per block (physical parameters and initial states only): the
     declared ones, and those of the hidden states on each segment's record
-    (:func:`~sk_offwhite._hidden.hidden_bounds`)."""
+    (`hidden_bounds`)."""
     lower = {k: np.full(np.shape(v), -np.inf) for k, v in blocks.items()}
     upper = {k: np.full(np.shape(v), np.inf) for k, v in blocks.items()}
     lower["theta"], upper["theta"] = physics.parameter_bounds()
@@ -230,14 +230,14 @@ def bound_blocks(physics, blocks, records, segments) -> tuple[dict, dict]:
 
 
 def cost_weights(weights) -> CostWeights:
-    """:class:`CostWeights` of JAX arrays from a ``CostWeights`` or the five scalar weights
+    """`CostWeights` of JAX arrays from a ``CostWeights`` or the five scalar weights
     ``(gamma, lam, nu, shooting, beta)`` (scales 1)."""
     return CostWeights(*(None if w is None else to_device(w, float) for w in weights))
 
 
 def make_problem(layout, blocks, free, bounds, segments, weights) -> tuple[Problem, jax.Array]:
-    """Assemble the dynamic :class:`Problem` (every free variable active) and the initial
-    free vector; ``weights`` as for :func:`cost_weights`."""
+    """Assemble the dynamic `Problem` (every free variable active) and the initial
+    free vector; ``weights`` as for `cost_weights`."""
     free_index = np.flatnonzero(layout.flatten(free))
     base = layout.flatten(blocks)
     lower, upper = (layout.flatten(b)[free_index] for b in bounds)
@@ -257,8 +257,8 @@ def make_problem(layout, blocks, free, bounds, segments, weights) -> tuple[Probl
 
 def _penalty_scale_per_entry(weights, omega_shape) -> tuple:
     """``weights`` with a scalar ``penalty_scale`` of a model with a dictionary spread over
-    :math:`\\Omega`'s shape: the physics-only stage of :mod:`~sk_offwhite._sparsity` (unit
-    scales) and the penalised stages (an array of :math:`s_{ij}`) then pass arrays of one
+    $\\Omega$'s shape: the physics-only stage of `_sparsity` (unit
+    scales) and the penalised stages (an array of $s_{ij}$) then pass arrays of one
     shape, and share one compiled program (the same values: multiplying by 1 is exact)."""
     if not np.prod(omega_shape):
         return weights
@@ -280,13 +280,13 @@ class SolverOptions(NamedTuple):
 
 
 class FitOutcome(NamedTuple):
-    r"""What :func:`fit_records` returns: fitted blocks, solver result, segments and scales.
+    r"""What `fit_records` returns: fitted blocks, solver result, segments and scales.
 
-    ``penalty_scale`` (shape of :math:`\Omega`, empty without a dictionary) and
-    ``gamma_max`` are those of :mod:`~sk_offwhite._sparsity`; ``weights`` the
-    :class:`CostWeights` with the data's scales; ``reference`` the physics-only stage, to
+    ``penalty_scale`` (shape of $\Omega$, empty without a dictionary) and
+    ``gamma_max`` are those of `_sparsity`; ``weights`` the
+    `CostWeights` with the data's scales; ``reference`` the physics-only stage, to
     reuse (``None`` without a dictionary); ``evidence`` its
-    :class:`~sk_offwhite._sparsity.TermEvidence` in the shape of :math:`\Omega`.
+    `TermEvidence` in the shape of $\Omega$.
     """
 
     blocks: dict
@@ -321,12 +321,12 @@ def fit_records(
     reference=None,
 ) -> FitOutcome:
     """Minimise the cost over all records: the pure core of ``fit`` (the arguments are
-    those of :class:`FitSettings` and :func:`_fit_once`).
+    those of `FitSettings` and `_fit_once`).
 
-    A fit whose model is no model (:func:`~sk_offwhite._verdict.needs_restart`) runs once more
-    from the physics-only continuation of :func:`~sk_offwhite._start.continuation_start`;
+    A fit whose model is no model (`needs_restart`) runs once more
+    from the physics-only continuation of `continuation_start`;
     a fit that ends with a hidden state's initial value where the first step forgets it
-    runs once more from its solution with that value inside (:func:`_hidden_starts_inside`).
+    runs once more from its solution with that value inside (`_hidden_starts_inside`).
     Each time the run with the lower fit term is kept.
     """
     settings = FitSettings(physics, basis, model, records, horizon, weights, options)
@@ -353,7 +353,7 @@ def _better(outcome: FitOutcome, retry: FitOutcome, why: str) -> FitOutcome:
 
 def _hidden_starts_inside(settings: FitSettings, outcome: FitOutcome) -> list | None:
     """Each record's fitted initial state with its hidden states where the record's first
-    input starts them (:func:`~sk_offwhite._hidden.hidden_start`), or ``None`` when that
+    input starts them (`hidden_start`), or ``None`` when that
     moves none. A start the first step forgets (a play's position beyond the play) has
     no gradient: a fit that pushed it there cannot bring it back, and a fit restarted
     from inside can find a lower cost (the servo refitted from the first loop's result:
@@ -384,13 +384,13 @@ class FitSettings(NamedTuple):
 def _fit_once(settings: FitSettings, warm=None, sparse=None, reference=None) -> FitOutcome:
     """One minimisation of the cost over all records, from the initial blocks.
 
-    ``settings`` holds the arguments of :func:`fit_records`: ``weights`` are the five
+    ``settings`` holds the arguments of `fit_records`: ``weights`` are the five
     scalars ``(gamma, lam, nu, shooting, beta)``; the output and state scales are taken
-    from the data (:func:`scaled_weights`). ``options`` is a :class:`SolverOptions`.
-    ``warm`` optional starting blocks (see :func:`initial_blocks`); ``sparse`` the
-    :class:`~sk_offwhite._sparsity.SparseOptions` of a fit with a dictionary (the three
-    stages of :mod:`~sk_offwhite._sparsity`); ``reference`` the
-    :class:`~sk_offwhite._sparsity.Reference` of an earlier fit of the same data and
+    from the data (`scaled_weights`). ``options`` is a `SolverOptions`.
+    ``warm`` optional starting blocks (see `initial_blocks`); ``sparse`` the
+    `SparseOptions` of a fit with a dictionary (the three
+    stages of `_sparsity`); ``reference`` the
+    `Reference` of an earlier fit of the same data and
     structure, which skips the physics-only stage.
     """
     physics, basis, model, records, horizon, weights, options = settings
@@ -447,14 +447,14 @@ def solve(
     """Run the chosen solver.
 
     ``'auto'`` picks Levenberg-Marquardt (forward-mode Jacobians) with multiple-shooting
-    windows or up to :data:`LM_MAX_FREE` free variables, and the optax loop (reverse-mode
+    windows or up to `LM_MAX_FREE` free variables, and the optax loop (reverse-mode
     gradients) for larger problems without windows. With windows and more than
-    :data:`STRUCTURED_MIN_FREE` free variables, Levenberg-Marquardt uses the coloured
-    Jacobian and sparse normal equations of :mod:`~sk_offwhite._structured`; otherwise
-    the whole run is one program (:mod:`~sk_offwhite._lm_device`; with ``verbose``, the
+    `STRUCTURED_MIN_FREE` free variables, Levenberg-Marquardt uses the coloured
+    Jacobian and sparse normal equations of `_structured`; otherwise
+    the whole run is one program (`_lm_device`; with ``verbose``, the
     Python loop that prints each iteration).
-    ``lm_scaling`` is Levenberg-Marquardt's rule for :math:`D`
-    (:func:`~sk_offwhite._optim.damped_diagonal`).
+    ``lm_scaling`` is Levenberg-Marquardt's rule for $D$
+    (`damped_diagonal`).
     """
     n_free = free0.shape[0]
     windows = bool(np.any(np.asarray(problem.segments.linked) > 0))

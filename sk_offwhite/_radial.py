@@ -4,18 +4,18 @@ A polynomial bends a whole curve to fix one stretch of it; a sensor whose readin
 a bump between two levels (a capacitive gauge, a thermocouple's junction) is better told by
 terms that are local in the level:
 
-.. math::
+$$
+\varphi_{jk}(v) = \exp\Big(-\tfrac12 \Big(\frac{v_j - c_{jk}}{w_j}\Big)^2\Big),
+$$
 
-    \varphi_{jk}(v) = \exp\Big(-\tfrac12 \Big(\frac{v_j - c_{jk}}{w_j}\Big)^2\Big),
-
-with centres :math:`c_{jk}` and a width :math:`w_j` per variable :math:`v_j` of
-:math:`v = [x; u]`, after (``linear=True``) the constant 1 and :math:`v_j` itself. With
-``limits``, :math:`v_j` is first clipped into :math:`[a_j, b_j]`, so that beyond the range
+with centres $c_{jk}$ and a width $w_j$ per variable $v_j$ of
+$v = [x; u]$, after (``linear=True``) the constant 1 and $v_j$ itself. With
+``limits``, $v_j$ is first clipped into $[a_j, b_j]$, so that beyond the range
 the correction was fitted on it holds its value at the edge instead of falling back to
 zero (or growing, for the linear term): a curve known only over the data is not
-extrapolated. :meth:`RadialBasis.from_data` spreads the centres evenly over the mean
-:math:`\pm` ``span`` standard deviations of the variable, sets the width to their spacing
-and the limits to the data's range, so the dictionary, and the model fitted with it, do
+extrapolated. [`RadialBasis.from_data`][sk_offwhite.RadialBasis.from_data] spreads the centres
+evenly over the mean $\pm$ ``span`` standard deviations of the variable, sets the width to their
+spacing and the limits to the data's range, so the dictionary, and the model fitted with it, do
 not depend on the variable's units.
 """
 
@@ -29,7 +29,7 @@ __all__ = ["RadialBasis"]
 
 
 class RadialBasis:
-    """Gaussian bumps of chosen entries of :math:`[x; u]`, a dictionary for the correction.
+    """Gaussian bumps of chosen entries of $[x; u]$, a dictionary for the correction.
 
     Parameters
     ----------
@@ -37,18 +37,18 @@ class RadialBasis:
         The centres of each variable's bumps, by the variable's name (a state or input
         name of the physics), in its units.
     widths : mapping of str to float
-        The width :math:`w_j > 0` of each variable's bumps, in its units.
+        The width $w_j > 0$ of each variable's bumps, in its units.
     linear : bool, default=True
         Put the constant 1 and each variable itself before its bumps (an offset and a gain).
     limits : mapping of str to (float, float), default=None
-        The range :math:`[a_j, b_j]` each named variable is clipped into before its
+        The range $[a_j, b_j]$ each named variable is clipped into before its
         features are evaluated; variables not named are not clipped.
 
     Notes
     -----
     Features are named ``exp(-0.5 ((x2 - 5.63) / 0.65)^2)`` (``clip(x2)`` for a clipped
     variable), so a fitted correction reads as an equation. Compiled by
-    :func:`~sk_offwhite._basis.compile_basis`.
+    `compile_basis`.
     """
 
     def __init__(self, centers: Mapping, widths: Mapping, *, linear: bool = True, limits=None):

@@ -2,16 +2,16 @@ r"""Pure JAX simulation of the grey-box model.
 
 The model adds a black-box correction to selected state equations and outputs,
 
-.. math::
+$$
+x_{k+1} = f(x_k, u_k; \theta) + S\, \delta(x_k, u_k; \omega), \qquad
+\delta_i = \sum_j \Omega_{ij}\, \Phi_{ij}([x_k; u_k]), \qquad
+z_k = h(x_k, u_k; \theta) + R\, \delta(x_k, u_k; \omega),
+$$
 
-    x_{k+1} = f(x_k, u_k; \theta) + S\, \delta(x_k, u_k; \omega), \qquad
-    \delta_i = \sum_j \Omega_{ij}\, \Phi_{ij}([x_k; u_k]), \qquad
-    z_k = h(x_k, u_k; \theta) + R\, \delta(x_k, u_k; \omega),
-
-where :math:`S` scatters the corrected state equations (``delta_states``, the first rows
-of :math:`\Omega`) into the state, :math:`R` the corrected outputs (``delta_outputs``, the
+where $S$ scatters the corrected state equations (``delta_states``, the first rows
+of $\Omega$) into the state, $R$ the corrected outputs (``delta_outputs``, the
 rows after them; a static correction of the output map, such as a sensor's nonlinearity)
-into the output, and :math:`\Phi` is the dictionary (a pysindy library or a ridge basis,
+into the output, and $\Phi$ is the dictionary (a pysindy library or a ridge basis,
 see ``_basis``).
 Simulation runs the recursion with ``jax.lax.scan`` (a *multi-step* prediction: the model
 feeds back its own states, never the measurements).
@@ -94,7 +94,7 @@ def theta_dict(model: Model, theta) -> dict:
 
 
 def correction(model: Model, params: dict, x, u):
-    r"""Black-box term :math:`S\delta(x, u; \omega)` added to the state update."""
+    r"""Black-box term $S\delta(x, u; \omega)$ added to the state update."""
     if model.basis is None or not model.delta_states:
         return jnp.zeros_like(x)
     delta = _delta_rows(model, params, x, u)[: len(model.delta_states)]
@@ -102,7 +102,7 @@ def correction(model: Model, params: dict, x, u):
 
 
 def output_correction(model: Model, params: dict, x, u, n_outputs: int):
-    r"""Black-box term :math:`R\delta(x, u; \omega)` added to the output map."""
+    r"""Black-box term $R\delta(x, u; \omega)$ added to the output map."""
     if model.basis is None or not model.delta_outputs:
         return jnp.zeros((n_outputs,), x.dtype)
     delta = _delta_rows(model, params, x, u)[len(model.delta_states) :]
@@ -110,8 +110,8 @@ def output_correction(model: Model, params: dict, x, u, n_outputs: int):
 
 
 def _delta_rows(model: Model, params: dict, x, u):
-    r"""Every row of the correction, :math:`\sum_j \Omega_{ij} \Phi_{ij}([x; u])`, with
-    :math:`x` the states the dictionary reads (``model.feature_states``)."""
+    r"""Every row of the correction, $\sum_j \Omega_{ij} \Phi_{ij}([x; u])$, with
+    $x$ the states the dictionary reads (``model.feature_states``)."""
     inner = {name: params[name] for name in model.inner_names}
     features = model.basis(inner, jnp.concatenate([x[: model.feature_states], u]))
     return multiply_add(params["omega"], features)
@@ -126,7 +126,7 @@ def _scattered(delta, targets: tuple[int, ...], size: int, dtype):
 
 
 def multiply_add(weights, features):
-    r""":math:`\sum_j W_{ij} F_{ij}` for arrays of shape ``(n, m)``, as a chain of ``m``
+    r"""$\sum_j W_{ij} F_{ij}$ for arrays of shape ``(n, m)``, as a chain of ``m``
     multiply-adds.
 
     Inside a ``scan``, XLA on CPU fuses this chain with the rest of the step, but not a
@@ -152,14 +152,14 @@ def take(v, indices):
 
 
 def model_step(model: Model, params: dict, x, u):
-    r"""One step of the augmented model: :math:`f(x, u; \theta) + S\delta(x, u; \omega)`."""
+    r"""One step of the augmented model: $f(x, u; \theta) + S\delta(x, u; \omega)$."""
     physics = model.step(x, u, theta_dict(model, params["theta"]))
     return jnp.asarray(physics, dtype=x.dtype).reshape(x.shape) + correction(model, params, x, u)
 
 
 def model_output(model: Model, params: dict, x, u, theta: dict):
-    r"""The output of the augmented model: :math:`h(x, u; \theta) + R\delta(x, u; \omega)`
-    (``theta`` the physical parameters by name, :func:`theta_dict`)."""
+    r"""The output of the augmented model: $h(x, u; \theta) + R\delta(x, u; \omega)$
+    (``theta`` the physical parameters by name, `theta_dict`)."""
     declared = jnp.atleast_1d(model.output(x, u, theta))
     if not model.delta_outputs:
         return declared
@@ -176,11 +176,11 @@ def simulate(model: Model, params: dict, x0, u):
     Returns
     -------
     states : array of shape (L, n_x)
-        :math:`\hat x_0, \dots, \hat x_{L-1}`.
+        $\hat x_0, \dots, \hat x_{L-1}$.
     outputs : array of shape (L, n_z)
-        :math:`\hat z_k = h(\hat x_k, u_k; \theta) + R\delta(\hat x_k, u_k; \omega)`.
+        $\hat z_k = h(\hat x_k, u_k; \theta) + R\delta(\hat x_k, u_k; \omega)$.
     final_state : array of shape (n_x,)
-        :math:`\hat x_L`, used to link consecutive shooting windows.
+        $\hat x_L$, used to link consecutive shooting windows.
     """
     theta = theta_dict(model, params["theta"])
 
@@ -194,7 +194,7 @@ def simulate(model: Model, params: dict, x0, u):
 
 @partial(jax.jit, static_argnums=0)
 def free_run(model: Model, params: dict, x0, u):
-    r"""Jitted :func:`simulate` plus the correction :math:`S\delta(\hat x_k, u_k)` at every step.
+    r"""Jitted `simulate` plus the correction $S\delta(\hat x_k, u_k)$ at every step.
 
     Returns ``(states, outputs, corrections)``, the last of shape ``(L, n_x)``.
     """
@@ -204,9 +204,9 @@ def free_run(model: Model, params: dict, x0, u):
 
 
 def free_run_record(model: Model, params: dict, x0, u) -> tuple[np.ndarray, ...]:
-    """:func:`free_run` of one record ``u``, as numpy arrays.
+    """`free_run` of one record ``u``, as numpy arrays.
 
-    The input is padded to :func:`~sk_offwhite._segments.padded_length` (its last row
+    The input is padded to `padded_length` (its last row
     repeated) and the run cut back to the record: records of nearby lengths (the training
     records and held-out blocks of a cross-validation, 341 and 342 samples) then share one
     compiled program, and a step depends only on the steps before it.

@@ -1,40 +1,40 @@
-r"""Sparse corrections with exact zeros: a scale-free penalty, :math:`\gamma_{max}`, pruning.
+r"""Sparse corrections with exact zeros: a scale-free penalty, $\gamma_{max}$, pruning.
 
 A fit with a dictionary runs in three stages, all on one compiled cost (the stages differ
 only in data: which variables are frozen and the weights):
 
-1. **Physics reference.** :math:`\Omega = 0` frozen, :math:`\theta` and :math:`\hat x_0`
+1. **Physics reference.** $\Omega = 0$ frozen, $\theta$ and $\hat x_0$
    fitted. At this point the sensitivities of the normalised simulated output to every
-   weight, :math:`J_{ij} = \partial r_{fit} / \partial \Omega_{ij}`, give the penalty scales
-   :math:`s_{ij} = \|J_{ij}\|_2` (the RMS output change per unit weight, in output standard
-   deviations) and the smallest :math:`\gamma` for which :math:`\Omega = 0` is optimal,
+   weight, $J_{ij} = \partial r_{fit} / \partial \Omega_{ij}$, give the penalty scales
+   $s_{ij} = \|J_{ij}\|_2$ (the RMS output change per unit weight, in output standard
+   deviations) and the smallest $\gamma$ for which $\Omega = 0$ is optimal,
 
-   .. math::
+   $$
+   \gamma_{max} = \max_{ij} \frac{|\partial C / \partial \Omega_{ij}|}{s_{ij}}
+                = \max_{ij} \frac{2\,|r^\top J_{ij}|}{\|J_{ij}\|_2}
+                \le 2\sqrt{F},
+   $$
 
-       \gamma_{max} = \max_{ij} \frac{|\partial C / \partial \Omega_{ij}|}{s_{ij}}
-                    = \max_{ij} \frac{2\,|r^\top J_{ij}|}{\|J_{ij}\|_2}
-                    \le 2\sqrt{F},
-
-   the KKT condition of the weighted :math:`\ell_1` problem (as scikit-learn's
-   ``lasso_path`` computes :math:`\alpha_{max}`).
-2. **Penalised fit** of the whole cost with :math:`\gamma\sum_{ij} s_{ij}|\Omega_{ij}|`.
-   :math:`\gamma` is dimensionless: a term is worth keeping when the RMS change it makes in
-   the simulated output exceeds about :math:`\gamma` output standard deviations.
-3. **Pruning and debiased refit.** The smoothed :math:`\ell_1` leaves small weights, never
+   the KKT condition of the weighted $\ell_1$ problem (as scikit-learn's
+   ``lasso_path`` computes $\alpha_{max}$).
+2. **Penalised fit** of the whole cost with $\gamma\sum_{ij} s_{ij}|\Omega_{ij}|$.
+   $\gamma$ is dimensionless: a term is worth keeping when the RMS change it makes in
+   the simulated output exceeds about $\gamma$ output standard deviations.
+3. **Pruning and debiased refit.** The smoothed $\ell_1$ leaves small weights, never
    exact zeros, and shrinks the large ones. Terms are visited in ascending order of their
-   contribution :math:`c_{ij} = s_{ij}|\Omega_{ij}|`; a term is removed when its contribution
+   contribution $c_{ij} = s_{ij}|\Omega_{ij}|$; a term is removed when its contribution
    is below ``prune_tol`` times the largest, or when zeroing it (with those already removed)
-   does not raise the penalised objective :math:`F + \gamma\sum c_{ij}` (exact absolute
-   values) by more than ``prune_tol`` times :math:`F`: what the term gains in fit does not
+   does not raise the penalised objective $F + \gamma\sum c_{ij}$ (exact absolute
+   values) by more than ``prune_tol`` times $F$: what the term gains in fit does not
    pay for its penalty. The remaining support is refitted without the penalty; pruning
-   repeats on the refit, now judged on :math:`F` alone (the refit is unpenalised), until the
+   repeats on the refit, now judged on $F$ alone (the refit is unpenalised), until the
    support is stable. This is sequential thresholding with refit (SINDy's STLSQ) on the multi-step
    cost, with thresholds on relative contributions, never on coefficient sizes, so the
    support does not depend on the units of the data or of the dictionary.
 
 Why this scheme: Levenberg-Marquardt needs smooth residuals (no proximal step), the
-contributions and the test on :math:`F` bound what pruning may cost, and the refit removes
-the shrinkage bias of the :math:`\ell_1` term.
+contributions and the test on $F$ bound what pruning may cost, and the refit removes
+the shrinkage bias of the $\ell_1$ term.
 """
 
 from __future__ import annotations
@@ -80,19 +80,19 @@ class SparseOptions(NamedTuple):
 class TermEvidence(NamedTuple):
     r"""What each dictionary term could explain that the physics cannot (first order).
 
-    With :math:`r` the residual of the physics-only fit, :math:`J_\theta` the Jacobian
+    With $r$ the residual of the physics-only fit, $J_\theta$ the Jacobian
     columns of every other free variable (parameters, initial states) and
-    :math:`P_\perp` the projector onto their orthogonal complement,
-    :math:`\tilde J_{ij} = P_\perp J_{ij}` is the part of term :math:`ij`'s effect on the
+    $P_\perp$ the projector onto their orthogonal complement,
+    $\tilde J_{ij} = P_\perp J_{ij}$ is the part of term $ij$'s effect on the
     simulated output that no re-adjustment of the physics can mimic. Then
 
-    .. math::
-
-        \text{gain}_{ij} = \frac{(r^\top \tilde J_{ij})^2}{\|\tilde J_{ij}\|^2\,\|r\|^2},
-        \quad
-        \text{absorbed}_{ij} = 1 - \frac{\|\tilde J_{ij}\|^2}{\|J_{ij}\|^2},
-        \quad
-        \hat\Omega_{ij} = -\frac{r^\top \tilde J_{ij}}{\|\tilde J_{ij}\|^2},
+    $$
+    \text{gain}_{ij} = \frac{(r^\top \tilde J_{ij})^2}{\|\tilde J_{ij}\|^2\,\|r\|^2},
+    \quad
+    \text{absorbed}_{ij} = 1 - \frac{\|\tilde J_{ij}\|^2}{\|J_{ij}\|^2},
+    \quad
+    \hat\Omega_{ij} = -\frac{r^\top \tilde J_{ij}}{\|\tilde J_{ij}\|^2},
+    $$
 
     the fraction of the cost the term removes alone once the physics re-adjusts, the
     fraction of its effect the physics parameters already produce (a term that only
@@ -101,7 +101,7 @@ class TermEvidence(NamedTuple):
     pursuit on the projected columns takes it (0 for terms it does not take): what a term
     adds beyond the stronger ones, so that of two nearly collinear terms only one counts.
     All are dimensionless or in the weight's own units, and do not depend on the units of
-    the data (the paper's :math:`\Upsilon` projection, §4).
+    the data (the paper's $\Upsilon$ projection, §4).
     """
 
     gain: np.ndarray
@@ -115,7 +115,7 @@ ABSORBED = 1.0 - 1e-6
 
 
 def term_evidence(residual, physics_columns, omega_columns) -> TermEvidence:
-    """:class:`TermEvidence` from the residual and the Jacobian columns (numpy)."""
+    """`TermEvidence` from the residual and the Jacobian columns (numpy)."""
     residual = np.asarray(residual, float)
     basis = _column_space(np.asarray(physics_columns, float))
     projected = omega_columns - basis @ (basis.T @ omega_columns)
@@ -134,7 +134,7 @@ def term_evidence(residual, physics_columns, omega_columns) -> TermEvidence:
 
 def matching_pursuit(residual, columns, usable, max_terms: int = 8, rtol: float = 1e-3):
     r"""Gain of each column when orthogonal matching pursuit takes it, as a fraction of
-    :math:`\|r\|^2` (0 for the others); a column whose norm falls below ``rtol`` of its
+    $\|r\|^2$ (0 for the others); a column whose norm falls below ``rtol`` of its
     own once the taken ones are projected out is redundant with them."""
     residual, columns = residual.copy(), columns.copy()
     own = np.sum(columns**2, axis=0)
@@ -165,11 +165,11 @@ def _column_space(columns: np.ndarray, rtol: float = 1e-10) -> np.ndarray:
 
 
 class Reference(NamedTuple):
-    r"""The physics-only stage: its solution, the penalty scales, :math:`\gamma_{max}` and
-    the terms' :class:`TermEvidence`.
+    r"""The physics-only stage: its solution, the penalty scales, $\gamma_{max}$ and
+    the terms' `TermEvidence`.
 
-    It depends on the data and the structure only, not on :math:`\gamma` or the pruning
-    settings, so a path of fits over :math:`\gamma` computes it once.
+    It depends on the data and the structure only, not on $\gamma$ or the pruning
+    settings, so a path of fits over $\gamma$ computes it once.
     """
 
     result: SolverResult
@@ -179,8 +179,8 @@ class Reference(NamedTuple):
 
 
 class SparseFit(NamedTuple):
-    r"""Outcome of :func:`fit_sparse` (numpy); ``penalty_scale`` and ``evidence`` have the
-    shape of :math:`\Omega` (masked weights: scale 0, no evidence)."""
+    r"""Outcome of `fit_sparse` (numpy); ``penalty_scale`` and ``evidence`` have the
+    shape of $\Omega$ (masked weights: scale 0, no evidence)."""
 
     free: np.ndarray
     result: SolverResult
@@ -191,7 +191,7 @@ class SparseFit(NamedTuple):
 
 
 def _full(values: np.ndarray, omega_flat: np.ndarray, shape, fill: float) -> np.ndarray:
-    r"""``values`` of the free weights placed in an array of the shape of :math:`\Omega`."""
+    r"""``values`` of the free weights placed in an array of the shape of $\Omega$."""
     full = np.full(int(np.prod(shape)), fill)
     full[omega_flat] = values
     return full.reshape(shape)
@@ -215,13 +215,13 @@ def _robust_scale(spread: np.ndarray, level: np.ndarray) -> np.ndarray:
 
 
 def output_scale(records) -> np.ndarray:
-    r"""Standard deviation :math:`\sigma_o` of every output over all records."""
+    r"""Standard deviation $\sigma_o$ of every output over all records."""
     z = np.concatenate([np.asarray(z_r, float) for _, z_r in records])
     return _robust_scale(np.std(z, axis=0), np.sqrt(np.mean(z**2, axis=0)))
 
 
 def state_scale(window_starts: np.ndarray) -> np.ndarray:
-    r"""Scale :math:`\varsigma_i` of every state: the spread of the windows' initial states."""
+    r"""Scale $\varsigma_i$ of every state: the spread of the windows' initial states."""
     starts = np.asarray(window_starts, float)
     finite = np.where(np.isfinite(starts), starts, 0.0)
     return _robust_scale(np.std(finite, axis=0), np.max(np.abs(finite), axis=0))
@@ -241,10 +241,10 @@ def block_columns(layout, free_index: np.ndarray, name: str) -> tuple[np.ndarray
 
 
 def penalty_scale(residual: np.ndarray, columns: np.ndarray, n_fit: int) -> tuple:
-    r"""Penalty scales :math:`s_{ij}` and :math:`\gamma_{max}` from the Jacobian columns.
+    r"""Penalty scales $s_{ij}$ and $\gamma_{max}$ from the Jacobian columns.
 
-    ``residual`` is the full residual vector at :math:`\Omega = 0`, ``columns`` the Jacobian
-    columns of the weights (one per column). Dead terms (:data:`DEAD_TERM`) get scale 0.
+    ``residual`` is the full residual vector at $\Omega = 0$, ``columns`` the Jacobian
+    columns of the weights (one per column). Dead terms (`DEAD_TERM`) get scale 0.
     """
     scale = np.linalg.norm(columns[:n_fit], axis=0)
     alive = scale > DEAD_TERM * np.max(scale, initial=0.0)
@@ -254,7 +254,7 @@ def penalty_scale(residual: np.ndarray, columns: np.ndarray, n_fit: int) -> tupl
 
 
 def _combine(results: list[SolverResult], free: np.ndarray) -> SolverResult:
-    """One :class:`SolverResult` for consecutive stages (history joined, the last's end;
+    """One `SolverResult` for consecutive stages (history joined, the last's end;
     converged when the last two stages converged, else the message of the one that did
     not)."""
     last = results[-1]
@@ -300,9 +300,9 @@ def _zeroed(free, at: np.ndarray) -> jnp.ndarray:
 def _prune(stage: _Stage, free: np.ndarray, scale: np.ndarray, tol: float, gamma: float):
     r"""Weights (positions in ``omega_at``) kept after the two pruning rules.
 
-    The second rule compares the penalised objective :math:`F + \gamma\sum s|\Omega|`
+    The second rule compares the penalised objective $F + \gamma\sum s|\Omega|$
     (exact absolute values): a term goes when what it gains in fit does not pay for its
-    penalty, up to a slack of ``tol`` times :math:`F`.
+    penalty, up to a slack of ``tol`` times $F$.
     """
     weights = free[stage.omega_at]
     contribution = scale * np.abs(weights)
@@ -376,7 +376,7 @@ def _physics_reference(stage: _Stage, free0) -> Reference:
 
 
 def _penalised_problem(problem: Problem, omega_flat, scale, n_free, dead) -> Problem:
-    """``problem`` with the penalty scales :math:`s_{ij}` and dead terms frozen."""
+    """``problem`` with the penalty scales $s_{ij}$ and dead terms frozen."""
     shape = np.shape(problem.omega_free)
     full = np.ones(int(np.prod(shape)))
     full[omega_flat] = np.where(scale > 0, scale, 1.0)
@@ -385,7 +385,7 @@ def _penalised_problem(problem: Problem, omega_flat, scale, n_free, dead) -> Pro
 
 
 class _FitCost:
-    """:func:`~sk_offwhite._optim.fit_cost` as a function of the free vector alone."""
+    """`fit_cost` as a function of the free vector alone."""
 
     def __init__(self, problem, model, layout, n_fit):
         self.problem, self.model, self.layout, self.n_fit = problem, model, layout, n_fit
@@ -459,11 +459,11 @@ def fit_sparse(
 
 def _no_worse_than(stage: _Stage, start: np.ndarray, result: SolverResult) -> SolverResult:
     r"""``result``, or the warm ``start`` when the start dominates it: no more terms and a
-    lower simulation error :math:`F`.
+    lower simulation error $F$.
 
     A penalised stage stopped at ``max_iter`` can leave the true terms small enough for
     pruning to drop them, and the refit then settles in a worse minimum with other terms;
-    a fit started from a solution (the previous :math:`\gamma` of a support path) must not
+    a fit started from a solution (the previous $\gamma$ of a support path) must not
     return one that is both larger and worse.
     """
     free = np.asarray(result.free, float)

@@ -3,9 +3,9 @@ r"""Cross-validation folds of one sequence, and the ``sample_index`` they hand t
 The rows of ``u`` and ``z`` are consecutive samples of one trajectory. A scikit-learn
 search indexes them with each fold's training indices and calls ``fit`` on the selected
 rows, which the estimator simulates as one record unless it also receives their
-``sample_index``. :class:`SequenceSplit` makes folds whose training rows are one contiguous
-run by default, so no fit ever simulates through the hole left by a held-out block.
-:func:`check_sample_index` and :func:`warn_if_fragmented` validate the ``sample_index``
+``sample_index``. [`SequenceSplit`][sk_offwhite.SequenceSplit] makes folds whose training rows are
+one contiguous run by default, so no fit ever simulates through the hole left by a held-out block.
+`check_sample_index` and `warn_if_fragmented` validate the ``sample_index``
 that ``fit`` and ``score`` receive.
 """
 
@@ -36,16 +36,16 @@ class SequenceWarning(UserWarning):
 class SequenceSplit(BaseCrossValidator):
     r"""Folds of contiguous blocks of one sequence, for cross-validating on time series.
 
-    The ``n_samples`` rows are cut into consecutive blocks :math:`B_j = [s_j, s_{j+1})`
+    The ``n_samples`` rows are cut into consecutive blocks $B_j = [s_j, s_{j+1})$
     and each fold holds out one block as its test rows. The training rows of the fold
-    that tests :math:`B_j`, with :math:`g` = ``gap`` rows left out on each side of it, are
+    that tests $B_j$, with $g$ = ``gap`` rows left out on each side of it, are
 
-    - ``train="longer"`` (default): the longer of the runs :math:`[0, s_j - g)` and
-      :math:`[s_{j+1} + g, n)` (the earlier one on a tie). Every block is tested once, as
+    - ``train="longer"`` (default): the longer of the runs $[0, s_j - g)$ and
+      $[s_{j+1} + g, n)$ (the earlier one on a tie). Every block is tested once, as
       with ``KFold``, and every training set is **one contiguous run**, so the estimator
       fits it as one record without being told where the rows came from. Folds with an
       inner test block train on about half of the other rows.
-    - ``train="rest"``: both runs, :math:`[0, s_j - g) \cup [s_{j+1} + g, n)` (with
+    - ``train="rest"``: both runs, $[0, s_j - g) \cup [s_{j+1} + g, n)$ (with
       ``gap=0``, the folds of ``KFold(n_splits)``). An inner test block leaves a hole
       between the two runs: the estimator fits them as two records, with their own
       initial states, **only if it receives** ``sample_index`` (for example
@@ -54,7 +54,7 @@ class SequenceSplit(BaseCrossValidator):
       if the last row of the first were followed by the first row of the second.
     - ``train="forward"`` (forward chaining): the rows are cut into ``n_splits + 1``
       blocks, the last ``n_splits`` of ``n_samples // (n_splits + 1)`` rows each, and
-      fold :math:`j` trains on :math:`[0, s_j - g)`: the folds of
+      fold $j$ trains on $[0, s_j - g)$: the folds of
       ``TimeSeriesSplit(n_splits, gap=gap)``. The training rows are contiguous and
       always precede the test block, but the first block is never tested and the early
       folds train on little data.
@@ -222,7 +222,7 @@ def _as_floats(index: np.ndarray) -> np.ndarray | None:
 
 
 def warn_if_fragmented(records: list[tuple], stacklevel: int = 2) -> None:
-    """Warn (:class:`SequenceWarning`) when some records hold a single row.
+    """Warn ([`SequenceWarning`][sk_offwhite.SequenceWarning]) when some records hold a single row.
 
     A record is a run of rows whose ``sample_index`` steps by one. A record of one row has
     no transition to fit or simulate; several of them are the mark of rows taken out of

@@ -2,11 +2,11 @@ r"""A start that works when the initial guess's simulation explodes: continuatio
 horizon.
 
 From an unstable guess (a pole outside the unit circle, a wrong sign) the simulation over
-a long record grows like :math:`|a|^N` and its cost overflows or is so steep that no solver
+a long record grows like $|a|^N$ and its cost overflows or is so steep that no solver
 step finds a descent. Over a short window the same guess is harmless: the error grows like
-:math:`|a|^T`. So the physical parameters are first fitted by multiple shooting over windows
-of :data:`FIRST_HORIZON` step, whose initial states start at the data (the measured states,
-:func:`within_reach`): the fit term then pins the window starts to
+$|a|^T$. So the physical parameters are first fitted by multiple shooting over windows
+of `FIRST_HORIZON` step, whose initial states start at the data (the measured states,
+`within_reach`): the fit term then pins the window starts to
 the measurements and the continuity term is the one-step (equation) error of the physics,
 which has no explosive direction. Then over windows four times longer, each fit starting
 from the previous one, until the model's free run over the whole records no longer
@@ -41,12 +41,12 @@ def continuation_start(fit: Callable, settings) -> dict | None:
     """Starting blocks (``theta`` and each record's initial state under ``"starts"``) from
     physics-only fits over lengthening windows (module docstring).
 
-    ``settings`` is the :class:`~sk_offwhite._problem.FitSettings` of the fit to start;
-    ``fit`` is :func:`~sk_offwhite._problem.fit_records` without its restart, called as
+    ``settings`` is the `FitSettings` of the fit to start;
+    ``fit`` is `fit_records` without its restart, called as
     ``fit(settings, warm)`` with the physics alone, each window length and the
     Levenberg-Marquardt solver (the windows make it sparse, see
-    :mod:`~sk_offwhite._structured`). Returns ``None`` when the requested horizon is no
-    longer than :data:`FIRST_HORIZON`.
+    `_structured`). Returns ``None`` when the requested horizon is no
+    longer than `FIRST_HORIZON`.
     """
     model = dataclasses.replace(
         settings.model, basis=None, delta_states=(), delta_outputs=(), inner_names=()

@@ -1,18 +1,18 @@
 r"""Levenberg-Marquardt for multiple shooting with many windows: a coloured Jacobian and
 sparse normal equations.
 
-With a horizon :math:`T` over :math:`N` samples the free variables are :math:`G` global
-ones (physical parameters, :math:`\Omega`, inner parameters) and the initial state of every
-window, :math:`\lceil N/T \rceil n_x` of them. A window's initial state touches only the
+With a horizon $T$ over $N$ samples the free variables are $G$ global
+ones (physical parameters, $\Omega$, inner parameters) and the initial state of every
+window, $\lceil N/T \rceil n_x$ of them. A window's initial state touches only the
 rows of its own window (fit and constraint residuals) and the continuity rows of the links
-on either side, so the Jacobian is an arrow: :math:`G` dense columns and a block-banded
-rest. Two windows two apart share no row, so the columns of state :math:`i` of all even
+on either side, so the Jacobian is an arrow: $G$ dense columns and a block-banded
+rest. Two windows two apart share no row, so the columns of state $i$ of all even
 windows can be pushed as one tangent, and those of all odd windows as another:
-:math:`K = G + 2 n_x` forward tangents give the whole Jacobian, however many windows
+$K = G + 2 n_x$ forward tangents give the whole Jacobian, however many windows
 (Curtis-Powell-Reid column compression). The normal equations
-:math:`(J^TJ + \mu D)s = -J^Tr` are then sparse (block tridiagonal with a dense border) and
-are solved by a sparse LU. Memory and time per iteration grow linearly with :math:`N`;
-the dense formulation grows as :math:`N^2` and :math:`N^3`.
+$(J^TJ + \mu D)s = -J^Tr$ are then sparse (block tridiagonal with a dense border) and
+are solved by a sparse LU. Memory and time per iteration grow linearly with $N$;
+the dense formulation grows as $N^2$ and $N^3$.
 """
 
 from __future__ import annotations
@@ -109,8 +109,8 @@ def _touching(part_sizes, n_segments, n_states):
 
 
 def colouring(layout, free_index, segments, part_sizes) -> Colouring:
-    """:class:`Colouring` of the free variables for the residual parts of ``part_sizes``
-    (the sizes of :class:`~sk_offwhite._objective.ResidualParts`)."""
+    """`Colouring` of the free variables for the residual parts of ``part_sizes``
+    (the sizes of `ResidualParts`)."""
     n_segments, n_states = np.shape(segments.mask)[0], _n_states(layout)
     window, colour, n_colours = _free_roles(layout, free_index, n_segments, n_states)
     seeds = np.zeros((window.shape[0], n_colours))
@@ -146,7 +146,7 @@ def _free_by_window(window, n_segments):
 
 class _State(NamedTuple):
     """Linearisation on the host: the normal matrix in blocks (globals ``g``, window starts
-    ``l``) and the gradient :math:`J^Tr`."""
+    ``l``) and the gradient $J^Tr$."""
 
     free: np.ndarray
     residual: np.ndarray
@@ -173,7 +173,7 @@ _cost = jax.jit(majorised_cost, static_argnums=(3, 4))
 
 
 def _linearise(free, problem, model, layout, plan: Colouring) -> _State:
-    """Host state at ``free``: residual, normal matrix :math:`J^TJ` in blocks, gradient."""
+    """Host state at ``free``: residual, normal matrix $J^TJ$ in blocks, gradient."""
     r, compressed, cost, anchor = _compressed(
         jnp.asarray(free), jnp.asarray(plan.seeds), problem, model=model, layout=layout
     )
@@ -197,8 +197,8 @@ def _linearise(free, problem, model, layout, plan: Colouring) -> _State:
 
 
 def _damped_step(state: _State, damping: float, scale, plan: Colouring, moving) -> np.ndarray:
-    r"""Solution of :math:`(J^TJ + \mu D)s = -J^Tr` (variables not ``moving`` stay; see
-    :func:`~sk_offwhite._optim.damped_diagonal`) by eliminating the window starts: their
+    r"""Solution of $(J^TJ + \mu D)s = -J^Tr$ (variables not ``moving`` stay; see
+    `damped_diagonal`) by eliminating the window starts: their
     block is banded (one window couples only to its neighbours), its LU has no fill, and
     the globals solve the dense Schur complement."""
     keep_g, keep_l = moving[plan.glob].astype(float), moving[plan.local].astype(float)
@@ -221,7 +221,7 @@ def _damped_step(state: _State, damping: float, scale, plan: Colouring, moving) 
 
 
 def _trial(state: _State, damping, scale, problem, model, layout, plan: Colouring):
-    """Damped step (``scale``: see :func:`~sk_offwhite._optim.damped_diagonal`), projected
+    """Damped step (``scale``: see `damped_diagonal`), projected
     on the box, and its cost (the state there is formed only if the step is accepted)."""
     lower, upper = np.asarray(problem.lower), np.asarray(problem.upper)
     moving = ~held_at_bound(state.free, state.gradient, lower, upper)
@@ -235,7 +235,7 @@ def structured_levenberg_marquardt(
     free0, problem, model, layout, *, max_iter: int, tol: float, verbose: int = 0,
     scaling: str = "per-variable",
 ) -> SolverResult:  # fmt: skip
-    """Levenberg-Marquardt of :func:`~sk_offwhite._optim.lm_loop` with the coloured
+    """Levenberg-Marquardt of `lm_loop` with the coloured
     Jacobian and sparse normal equations (module docstring)."""
     parts = jax.eval_shape(
         lambda f: residual_parts(

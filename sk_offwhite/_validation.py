@@ -65,7 +65,7 @@ def check_pair(u, z) -> tuple[np.ndarray, np.ndarray]:
 
 
 def check_record(u, z) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`check_pair` with ``z`` as a 2-D array ``(n_samples, n_outputs)``."""
+    """`check_pair` with ``z`` as a 2-D array ``(n_samples, n_outputs)``."""
     u, z = check_pair(u, z)
     return u, z.reshape(z.shape[0], -1)
 

@@ -2,15 +2,15 @@ r"""Whether a solver's answer is a model: the honest ``converged_``.
 
 A solver stops at a point where its own rule is met (a small relative decrease, no descent
 step left, no improvement for a while). From a guess whose simulation explodes every one of
-these rules can be met at a cost of :math:`10^{200}`. The verdict looks at the fit term
-:math:`F` (the normalised simulation MSE of :mod:`~sk_offwhite._objective`, in units of
-the output variance, so that predicting each output's mean scores :math:`F = 1`) and calls
+these rules can be met at a cost of $10^{200}$. The verdict looks at the fit term
+$F$ (the normalised simulation MSE of `_objective`, in units of
+the output variance, so that predicting each output's mean scores $F = 1$) and calls
 the run a failure when
 
-* :math:`F` is not finite: the fitted model's simulation overflows;
-* :math:`F >` :data:`NO_MODEL_FIT`: the RMS simulation error exceeds ten output standard
+* $F$ is not finite: the fitted model's simulation overflows;
+* $F >$ `NO_MODEL_FIT`: the RMS simulation error exceeds ten output standard
   deviations;
-* the free variables never moved and :math:`F > 1`: the solver stayed at a guess that
+* the free variables never moved and $F > 1$: the solver stayed at a guess that
   simulates worse than the outputs' means.
 """
 
@@ -36,7 +36,7 @@ standard deviations)."""
 
 
 def with_fit_term(result: SolverResult, problem, model, layout) -> SolverResult:
-    """``result`` with its fit term :math:`F` filled in (one forward simulation if the
+    """``result`` with its fit term $F$ filled in (one forward simulation if the
     solver did not report it)."""
     if np.isfinite(result.fit):
         return result
@@ -73,7 +73,7 @@ def judged(result: SolverResult, free0) -> SolverResult:
 
 def needs_restart(result: SolverResult) -> bool:
     """Whether a judged result is worth a restart: its simulation explodes (fit term not
-    finite or above :data:`NO_MODEL_FIT`), or the solver stopped unconverged at a model
+    finite or above `NO_MODEL_FIT`), or the solver stopped unconverged at a model
     that simulates worse than the outputs' means."""
     worse_than_mean = not result.converged and not result.fit <= 1.0
     return not result.fit <= NO_MODEL_FIT or worse_than_mean
@@ -81,18 +81,18 @@ def needs_restart(result: SolverResult) -> bool:
 
 RUNAWAY_FACTOR = 1e6
 """Factor by which a fitted parameter's magnitude must exceed its declared start's for
-:func:`runaway_parameters` to name it (a ratio: the same in any units)."""
+`runaway_parameters` to name it (a ratio: the same in any units)."""
 
 
 def runaway_parameters(physics, theta) -> list[tuple[str, float, float]]:
     r"""``(name, start, fitted)`` of each free parameter of ``physics`` whose fitted value
-    ``theta`` (declaration order) ran away from its declared start :math:`\theta_0`:
-    :math:`|\hat\theta| >` :data:`RUNAWAY_FACTOR` :math:`|\theta_0|`, unless it sits at a
+    ``theta`` (declaration order) ran away from its declared start $\theta_0$:
+    $|\hat\theta| >$ `RUNAWAY_FACTOR` $|\theta_0|$, unless it sits at a
     finite bound the user declared. A parameter started at zero has no scale to compare
     with and is not judged.
 
     Such a value is seldom a measurement: the simulation no longer depends on the
-    parameter there (a load's time constant at :math:`10^{19}` s switches its
+    parameter there (a load's time constant at $10^{19}$ s switches its
     discharge off), and the fit ran along a direction the data do not determine.
     """
     start = physics.parameter_values()

@@ -1,10 +1,11 @@
 """pysindy baselines fitted and scored under sk_offwhite's protocol (free-run simulation).
 
-:class:`DelaySINDyRegressor` is pysindy's ``DiscreteSINDy`` (STLSQ or SR3) on a delay
-embedding of the measured outputs and inputs, with an optional physics-informed
-square-root library, behind the ``fit(u, z)`` / ``predict(u)`` / ``score(u, z)`` contract of
-:class:`~sk_offwhite.GreyBoxSparseRegressor`; :func:`tune_delay_sindy` chooses its lags and
-threshold by cross-validation on the estimation record only.
+[`DelaySINDyRegressor`][sk_offwhite.baselines.DelaySINDyRegressor] is pysindy's ``DiscreteSINDy``
+(STLSQ or SR3) on a delay embedding of the measured outputs and inputs, with an optional
+physics-informed square-root library, behind the ``fit(u, z)`` / ``predict(u)`` / ``score(u, z)``
+contract of [`GreyBoxSparseRegressor`][sk_offwhite.GreyBoxSparseRegressor];
+[`tune_delay_sindy`][sk_offwhite.baselines.tune_delay_sindy] chooses its lags and threshold by
+cross-validation on the estimation record only.
 """
 
 from ._embedding import Embedding, embed_record, history_length, variable_names

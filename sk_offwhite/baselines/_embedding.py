@@ -1,17 +1,17 @@
 r"""Delay embedding: the regressors of a discrete-time model of the *measured* outputs.
 
 When only some states are measured, a black-box map cannot use the state; it uses the
-recent past of what is measured instead. At time :math:`k` the regressor vector is
+recent past of what is measured instead. At time $k$ the regressor vector is
 
-.. math::
-
-    w_k = \bigl[z_k, \dots, z_{k-n_z+1},\;
-          \sqrt{z_k^+}, \dots, \sqrt{z_{k-n_z+1}^+},\;
-          u_k, \dots, u_{k-n_u+1}\bigr],
-    \qquad z^+ = \max(z, 0),
+$$
+w_k = \bigl[z_k, \dots, z_{k-n_z+1},\;
+      \sqrt{z_k^+}, \dots, \sqrt{z_{k-n_z+1}^+},\;
+      u_k, \dots, u_{k-n_u+1}\bigr],
+\qquad z^+ = \max(z, 0),
+$$
 
 (the square roots only when requested: the physics-informed variant for outflows that
-follow Torricelli's law) and the model predicts :math:`z_{k+1}` from :math:`w_k`. The same
+follow Torricelli's law) and the model predicts $z_{k+1}$ from $w_k$. The same
 function builds the regressors for fitting (every row of a record) and for simulation (one
 row from the simulated history), so both use exactly the same variables.
 """
@@ -31,11 +31,11 @@ class Embedding(NamedTuple):
     Attributes
     ----------
     n_output_lags : int
-        :math:`n_z \ge 1`, past outputs in the regressor (the current one included).
+        $n_z \ge 1$, past outputs in the regressor (the current one included).
     n_input_lags : int
-        :math:`n_u \ge 0`, past inputs in the regressor (the current one included).
+        $n_u \ge 0$, past inputs in the regressor (the current one included).
     sqrt_outputs : bool
-        Append :math:`\sqrt{\max(z, 0)}` of every output lag.
+        Append $\sqrt{\max(z, 0)}$ of every output lag.
     """
 
     n_output_lags: int
@@ -89,7 +89,8 @@ def regressor_row(u: np.ndarray, z: np.ndarray, k: int, embedding: Embedding) ->
 def variable_names(
     output_names: list[str], input_names: list[str], embedding: Embedding
 ) -> list[str]:
-    """Names of the regressor variables, in the order of :func:`embed_record`."""
+    """Names of the regressor variables, in the order of
+    [`embed_record`][sk_offwhite.baselines.embed_record]."""
     z_names = [f"{n}[k-{j}]" if j else f"{n}[k]" for j in range(embedding.n_output_lags)
                for n in output_names]  # fmt: skip
     u_names = [f"{n}[k-{j}]" if j else f"{n}[k]" for j in range(embedding.n_input_lags)

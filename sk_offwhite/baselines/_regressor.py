@@ -1,10 +1,10 @@
 r"""``DelaySINDyRegressor``: a pysindy ``DiscreteSINDy`` baseline as a scikit-learn estimator.
 
 pysindy 2.x fits with ``fit(x, t, x_next=None, u=None)``: time sits where scikit-learn puts
-the target, and ``score`` is the one-step :math:`R^2`. This estimator wraps the same pysindy
-model behind the contract of :class:`~sk_offwhite.GreyBoxSparseRegressor`: ``fit(u, z)``,
-``predict(u)`` simulates from the start of the record, ``score(u, z)`` is the :math:`R^2` of
-that free run, so ``GridSearchCV`` tunes lags, threshold and optimiser on the simulation
+the target, and ``score`` is the one-step $R^2$. This estimator wraps the same pysindy
+model behind the contract of [`GreyBoxSparseRegressor`][sk_offwhite.GreyBoxSparseRegressor]:
+``fit(u, z)``, ``predict(u)`` simulates from the start of the record, ``score(u, z)`` is the $R^2$
+of that free run, so ``GridSearchCV`` tunes lags, threshold and optimiser on the simulation
 error, exactly as it tunes ``gamma`` of the grey-box model.
 """
 
@@ -33,8 +33,8 @@ def make_optimizer(name: str, threshold: float, alpha: float, max_iter: int):
     r"""pysindy optimiser ``'stlsq'`` or ``'sr3'`` whose hard threshold is ``threshold``.
 
     STLSQ zeroes coefficients below ``threshold`` with ridge weight ``alpha``; SR3 with the
-    L0 regulariser thresholds at :math:`\sqrt{2\lambda\nu}`, so
-    :math:`\lambda = \text{threshold}^2 / (2\nu)` with :math:`\nu` = ``alpha``.
+    L0 regulariser thresholds at $\sqrt{2\lambda\nu}$, so
+    $\lambda = \text{threshold}^2 / (2\nu)$ with $\nu$ = ``alpha``.
     """
     if name == "stlsq":
         return ps.STLSQ(threshold=threshold, alpha=alpha, max_iter=max_iter)
@@ -54,29 +54,30 @@ def _column_names(prefix: str, n: int) -> list[str]:
 class DelaySINDyRegressor(RegressorMixin, BaseEstimator):
     r"""Discrete-time SINDy on a delay embedding of the measured outputs, scored in free run.
 
-    The model is :math:`z_{k+1} = \Xi\, \varphi(w_k)` with :math:`w_k` the delay embedding of
-    :mod:`~sk_offwhite.baselines._embedding` (``n_output_lags`` outputs, their square roots
-    if ``sqrt_outputs``, ``n_input_lags`` inputs) and :math:`\varphi` a polynomial library of
-    ``degree``. :math:`\Xi` is fitted by pysindy's ``DiscreteSINDy`` (state :math:`z_k`, the
+    The model is $z_{k+1} = \Xi\, \varphi(w_k)$ with $w_k$ the delay embedding of
+    `_embedding` (``n_output_lags`` outputs, their square roots
+    if ``sqrt_outputs``, ``n_input_lags`` inputs) and $\varphi$ a polynomial library of
+    ``degree``. $\Xi$ is fitted by pysindy's ``DiscreteSINDy`` (state $z_k$, the
     other variables passed as its control input ``u``) with STLSQ or SR3; it sees only the
     fitting records' inputs and outputs, never unmeasured states or physical parameters.
 
     Parameters
     ----------
     n_output_lags : int, default=2
-        Past outputs in the regressor (``1``: only :math:`z_k`).
+        Past outputs in the regressor (``1``: only $z_k$).
     n_input_lags : int, default=2
         Past inputs in the regressor (``0``: no input).
     degree : int, default=2
         Degree of the polynomial library on the regressor variables.
     sqrt_outputs : bool, default=False
-        Add :math:`\sqrt{\max(z, 0)}` of each output lag (physics-informed, e.g. tanks).
+        Add $\sqrt{\max(z, 0)}$ of each output lag (physics-informed, e.g. tanks).
     optimizer : {'stlsq', 'sr3'}, default='stlsq'
         Sparse regression of pysindy (SR3 with the L0 regulariser).
     threshold : float, default=0.01
-        Hard threshold on the coefficients (see :func:`make_optimizer`).
+        Hard threshold on the coefficients (see
+        [`make_optimizer`][sk_offwhite.baselines.make_optimizer]).
     alpha : float, default=0.05
-        Ridge weight of STLSQ, relaxation :math:`\nu` of SR3.
+        Ridge weight of STLSQ, relaxation $\nu$ of SR3.
     max_iter : int, default=20
         Iterations of the optimiser.
     include_bias : bool, default=True
@@ -85,20 +86,20 @@ class DelaySINDyRegressor(RegressorMixin, BaseEstimator):
         Free runs are kept within the fitted output range widened by ``clip_margin`` spans
         each side; reaching it flags the run as diverged.
     init_window : int, default=None
-        Samples :meth:`score` takes as the known history of each scored record (excluded from
+        Samples `score` takes as the known history of each scored record (excluded from
         the score). ``None``: ``max(min(50, n_samples // 5), history)``.
 
     Attributes
     ----------
     coef_ : ndarray of shape (n_outputs, n_features)
-        :math:`\Xi`.
+        $\Xi$.
     support_ : ndarray of bool, same shape as ``coef_``
     feature_names_ : list of str
         Library terms, from pysindy's ``get_feature_names``.
     powers_ : ndarray of shape (n_features, n_variables)
         Exponents of every term in the regressor variables.
     history_ : ndarray of shape (n_history, n_outputs)
-        First outputs of the first fitting record: the default start of :meth:`predict`.
+        First outputs of the first fitting record: the default start of `predict`.
     output_box_ : tuple of ndarray
         Bounds of the free run (see ``clip_margin``).
     embedding_ : Embedding
@@ -180,7 +181,7 @@ class DelaySINDyRegressor(RegressorMixin, BaseEstimator):
 
     @_fit_context(prefer_skip_nested_validation=True)
     def fit(self, u, z, sample_index=None):
-        """Fit :math:`\\Xi` on the one-step targets of every record (pysindy).
+        """Fit $\\Xi$ on the one-step targets of every record (pysindy).
 
         Parameters
         ----------
@@ -188,7 +189,7 @@ class DelaySINDyRegressor(RegressorMixin, BaseEstimator):
         z : array-like of shape (n_samples,) or (n_samples, n_outputs)
         sample_index : array-like of shape (n_samples,), default=None
             Original time index of each row; a jump starts a new record (no regressor row
-            spans it), as in :meth:`GreyBoxSparseRegressor.fit`.
+            spans it), as in [`GreyBoxSparseRegressor.fit`][sk_offwhite.GreyBoxSparseRegressor.fit].
 
         Returns
         -------
@@ -278,7 +279,7 @@ class DelaySINDyRegressor(RegressorMixin, BaseEstimator):
         return min(max(window, need), n_samples - 1)
 
     def score(self, u, z, sample_index=None) -> float:
-        """:math:`R^2` of the free run of every record after its first ``init_window`` samples.
+        """$R^2$ of the free run of every record after its first ``init_window`` samples.
 
         A diverged run scores ``-inf`` with a ``RuntimeWarning``, so model selection never
         picks it.

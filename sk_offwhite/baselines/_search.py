@@ -1,9 +1,9 @@
 """Choosing a baseline's lags and threshold on the estimation record only.
 
-:func:`tune_delay_sindy` is a plain ``GridSearchCV`` over :class:`DelaySINDyRegressor`
-with contiguous ``KFold`` blocks of the estimation record (``sample_index`` keeps blocks
-apart, each held-out block is simulated from its own first samples), scored by the
-free-run :math:`R^2`. Validation data never enter the choice.
+[`tune_delay_sindy`][sk_offwhite.baselines.tune_delay_sindy] is a plain ``GridSearchCV`` over
+[`DelaySINDyRegressor`][sk_offwhite.baselines.DelaySINDyRegressor] with contiguous ``KFold`` blocks
+of the estimation record (``sample_index`` keeps blocks apart, each held-out block is simulated from
+its own first samples), scored by the free-run $R^2$. Validation data never enter the choice.
 """
 
 from __future__ import annotations
@@ -20,7 +20,8 @@ DEFAULT_GRID: dict[str, list] = {
     "n_input_lags": [1, 2, 3],
     "threshold": [1e-3, 1e-2, 1e-1],
 }
-"""Lags and thresholds searched by :func:`tune_delay_sindy` unless told otherwise."""
+"""Lags and thresholds searched by [`tune_delay_sindy`][sk_offwhite.baselines.tune_delay_sindy]
+unless told otherwise."""
 
 
 def tune_delay_sindy(
@@ -34,7 +35,8 @@ def tune_delay_sindy(
     n_splits: int = 3,
     n_jobs: int | None = None,
 ) -> GridSearchCV:
-    """Grid search of a :class:`DelaySINDyRegressor` by free-run CV on one record.
+    """Grid search of a [`DelaySINDyRegressor`][sk_offwhite.baselines.DelaySINDyRegressor] by
+    free-run CV on one record.
 
     Parameters
     ----------
@@ -48,7 +50,8 @@ def tune_delay_sindy(
     degree : int, default=2
         Polynomial degree of the library.
     param_grid : dict, default=None
-        Grid over the estimator's parameters; ``None`` uses :data:`DEFAULT_GRID`.
+        Grid over the estimator's parameters; ``None`` uses
+        [`DEFAULT_GRID`][sk_offwhite.baselines.DEFAULT_GRID].
     n_splits : int, default=3
         Contiguous folds of the record.
     n_jobs : int, default=None

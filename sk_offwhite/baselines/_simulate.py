@@ -1,7 +1,7 @@
 r"""Free-run simulation of a fitted delay-embedding model, with a divergence guard.
 
-The model feeds back its own predictions: :math:`\hat z_{k+1} = \Xi\,\varphi(\hat w_k)`,
-where :math:`\hat w_k` holds *simulated* outputs (measured ones only for the initial
+The model feeds back its own predictions: $\hat z_{k+1} = \Xi\,\varphi(\hat w_k)$,
+where $\hat w_k$ holds *simulated* outputs (measured ones only for the initial
 history). Black-box maps fitted on one-step errors often are unstable in free run. Every
 simulated value is therefore kept inside the box ``[lo, hi]`` (the fitting records' output
 range widened on each side by ``clip_margin`` times its span); a run that reaches the box
@@ -20,7 +20,7 @@ __all__ = ["FreeRun", "monomials", "output_box", "simulate_free_run"]
 
 
 class FreeRun(NamedTuple):
-    """Result of :func:`simulate_free_run`.
+    """Result of [`simulate_free_run`][sk_offwhite.baselines.simulate_free_run].
 
     Attributes
     ----------
@@ -38,7 +38,7 @@ class FreeRun(NamedTuple):
 
 
 def monomials(w: np.ndarray, powers: np.ndarray) -> np.ndarray:
-    r"""Polynomial features :math:`\prod_v w_v^{p_{jv}}` of one row or many rows.
+    r"""Polynomial features $\prod_v w_v^{p_{jv}}$ of one row or many rows.
 
     ``powers`` is a pysindy ``PolynomialLibrary``'s ``powers_`` (one row per feature), so
     the result equals ``library.transform(w)`` without pysindy's per-call overhead.
@@ -76,7 +76,7 @@ def simulate_free_run(
     coef : ndarray of shape (n_outputs, n_features)
     powers : ndarray of shape (n_features, n_variables)
     box : (lo, hi)
-        Bounds from :func:`output_box`.
+        Bounds from [`output_box`][sk_offwhite.baselines.output_box].
 
     Returns
     -------

@@ -8,9 +8,9 @@ problems (10), (11)-(13) and (19)-(20) on a linear-in-parameters problem with cv
 ``linearise_estimator``, ``multistep_relaxation``, ``certify_estimator`` and
 ``estimator_feasible_set`` apply them to the local linearisation of a fitted multi-step model
 (relaxation 15, Theorems 4-5). ``certify_estimator`` certifies the fit's own
-:math:`\hat\omega` (pruned at 1 % of the largest term's contribution), and every
+$\hat\omega$ (pruned at 1 % of the largest term's contribution), and every
 certificate carries a ``SparsityDiagnosis`` (``explain()``): the sparsest support with fewer
-terms that fits within :math:`\mu`, searched by ``sparsest_feasible_support``.
+terms that fits within $\mu$, searched by ``sparsest_feasible_support``.
 ``hull_errors``, ``principal_components`` and ``hull_polygon`` give the paper's Fig. 2
 statistic: FPS and SFPS as convex hulls of Monte Carlo estimates.
 """

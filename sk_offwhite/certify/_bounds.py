@@ -1,43 +1,43 @@
 r"""Theorem 1 of Donati et al.: a computable parametric error bound for a fit.
 
 Lemma 1 and the proof of Theorem 1 differentiate the optimality condition
-:math:`\nabla_p C_T(p^*; \eta) = 0` (implicit function theorem):
+$\nabla_p C_T(p^*; \eta) = 0$ (implicit function theorem):
 
-.. math::
+$$
+\frac{\partial p^*}{\partial \eta} = -H^{-1} G, \qquad
+H = \frac{\partial^2 C_T}{\partial p^2}, \qquad
+G = \frac{\partial^2 C_T}{\partial \eta\, \partial p},
+$$
 
-    \frac{\partial p^*}{\partial \eta} = -H^{-1} G, \qquad
-    H = \frac{\partial^2 C_T}{\partial p^2}, \qquad
-    G = \frac{\partial^2 C_T}{\partial \eta\, \partial p},
-
-for three perturbations of the data (see :mod:`._ident_derivatives`): input noise
-:math:`\eta^u`, output noise :math:`\eta^z` and the model error
-:math:`\tilde\Delta_k = \Delta(x_k, u_k) - \delta(\hat x_k, u_k; \omega)` acting as an
-additive disturbance on the corrected state equations. The rows of :math:`H^{-1}G` that belong
-to the physical parameters :math:`\theta` give the sensitivities, and their induced norms the
+for three perturbations of the data (see `_ident_derivatives`): input noise
+$\eta^u$, output noise $\eta^z$ and the model error
+$\tilde\Delta_k = \Delta(x_k, u_k) - \delta(\hat x_k, u_k; \omega)$ acting as an
+additive disturbance on the corrected state equations. The rows of $H^{-1}G$ that belong
+to the physical parameters $\theta$ give the sensitivities, and their induced norms the
 constants of bound (5),
 
-.. math::
-
-    \|\theta^* - \bar\theta\|_q \le M_u \|\eta^u\|_p + M_z \|\eta^z\|_p
-        + M_\Delta \|\tilde\Delta\|_p, \qquad
-    M_\bullet = \big\|[H^{-1}G]_{\theta,\bullet}\big\|_{p \to q}.
+$$
+\|\theta^* - \bar\theta\|_q \le M_u \|\eta^u\|_p + M_z \|\eta^z\|_p
+    + M_\Delta \|\tilde\Delta\|_p, \qquad
+M_\bullet = \big\|[H^{-1}G]_{\theta,\bullet}\big\|_{p \to q}.
+$$
 
 What is computed, and how it differs from the paper:
 
-* :math:`H` and :math:`G` are taken **at the fitted solution**, not maximised over a noise set
-  :math:`\mathcal N` as in Lemma 1: the bound is the first-order (linearised) estimate of the
+* $H$ and $G$ are taken **at the fitted solution**, not maximised over a noise set
+  $\mathcal N$ as in Lemma 1: the bound is the first-order (linearised) estimate of the
   theorem, exact for models linear in the parameters and to first order otherwise.
 * The initial state and the black-box weights on the support are re-optimised together with
-  :math:`\theta` (they are rows of :math:`H`); only the :math:`\theta` rows enter the bound.
-  The paper assumes :math:`x_0` known "for simplicity".
-* :math:`M_\Delta` is the sensitivity to an additive state disturbance whose effect on the
-  data is propagated along the fitted model; the paper's :math:`M_\Delta` is a Lipschitz
-  constant of :math:`\theta^*(0, \tilde\Delta)`, of which this is the local value.
-* Norms: ``noise_norm`` :math:`p \in \{2, \infty\}` on the stacked perturbation sequences,
-  ``error_norm`` :math:`q \in \{2, \infty\}` on :math:`\theta`. For :math:`p = q` and for
-  :math:`(2, \infty)` the induced norm is exact; for :math:`(\infty, 2)`, whose exact value is
-  NP-hard, the bound uses :math:`\|A\|_{\infty\to 2} \le \| |A|\,\mathbf 1 \|_2` (exact per
-  parameter: :math:`|(A\eta)_i| \le \sum_j |A_{ij}|\, \|\eta\|_\infty`).
+  $\theta$ (they are rows of $H$); only the $\theta$ rows enter the bound.
+  The paper assumes $x_0$ known "for simplicity".
+* $M_\Delta$ is the sensitivity to an additive state disturbance whose effect on the
+  data is propagated along the fitted model; the paper's $M_\Delta$ is a Lipschitz
+  constant of $\theta^*(0, \tilde\Delta)$, of which this is the local value.
+* Norms: ``noise_norm`` $p \in \{2, \infty\}$ on the stacked perturbation sequences,
+  ``error_norm`` $q \in \{2, \infty\}$ on $\theta$. For $p = q$ and for
+  $(2, \infty)$ the induced norm is exact; for $(\infty, 2)$, whose exact value is
+  NP-hard, the bound uses $\|A\|_{\infty\to 2} \le \| |A|\,\mathbf 1 \|_2$ (exact per
+  parameter: $|(A\eta)_i| \le \sum_j |A_{ij}|\, \|\eta\|_\infty$).
 """
 
 from __future__ import annotations
@@ -72,19 +72,19 @@ class ParameterErrorBound:
     names : tuple of str
         The free physical parameters (rows of the sensitivities).
     sensitivity_u, sensitivity_z, sensitivity_delta : ndarray
-        :math:`[H^{-1}G]_\\theta` for input noise (columns: samples x inputs), output noise
+        $[H^{-1}G]_\\theta$ for input noise (columns: samples x inputs), output noise
         (samples x outputs) and model error (samples x ``disturbed_states``), in sample-major
         order over the measured samples of every record.
     m_u, m_z, m_delta : float
-        Induced norms of the three sensitivities (:math:`M_u, M_z, M_\\Delta`).
+        Induced norms of the three sensitivities ($M_u, M_z, M_\\Delta$).
     noise_norm, error_norm : float
-        :math:`p` and :math:`q` (2 or ``inf``).
+        $p$ and $q$ (2 or ``inf``).
     noise_u, noise_z, delta_norm : float
-        :math:`\\|\\eta^u\\|_p`, :math:`\\|\\eta^z\\|_p`, :math:`\\|\\tilde\\Delta\\|_p` given.
+        $\\|\\eta^u\\|_p$, $\\|\\eta^z\\|_p$, $\\|\\tilde\\Delta\\|_p$ given.
     disturbed_states : tuple of int
-        State equations the model error :math:`\\tilde\\Delta` acts on.
+        State equations the model error $\\tilde\\Delta$ acts on.
     identifiable : bool
-        :math:`H \\succ 0`; otherwise a pseudo-inverse was used and the bound is not valid.
+        $H \\succ 0$; otherwise a pseudo-inverse was used and the bound is not valid.
     """
 
     names: tuple[str, ...]
@@ -104,7 +104,7 @@ class ParameterErrorBound:
 
     @property
     def bound(self) -> float:
-        """:math:`M_u\\|\\eta^u\\| + M_z\\|\\eta^z\\| + M_\\Delta\\|\\tilde\\Delta\\|` (eq. 5)."""
+        """$M_u\\|\\eta^u\\| + M_z\\|\\eta^z\\| + M_\\Delta\\|\\tilde\\Delta\\|$ (eq. 5)."""
         return self.evaluate(self.noise_u, self.noise_z, self.delta_norm)
 
     def evaluate(self, noise_u: float = 0.0, noise_z: float = 0.0, delta_norm: float = 0.0):
@@ -152,7 +152,7 @@ def _check_sizes(noise_u, noise_z, delta_norm) -> np.ndarray:
 
 
 def induced_norm(matrix, noise_norm: float = np.inf, error_norm: float = 2.0) -> float:
-    r"""Operator norm :math:`\|A\|_{p\to q}` (an upper bound for :math:`p=\infty, q=2`).
+    r"""Operator norm $\|A\|_{p\to q}$ (an upper bound for $p=\infty, q=2$).
 
     ========  ========  =============================================
     ``p``     ``q``     value
@@ -160,7 +160,7 @@ def induced_norm(matrix, noise_norm: float = np.inf, error_norm: float = 2.0) ->
     2         2         largest singular value
     2         inf       largest row 2-norm
     inf       inf       largest row 1-norm
-    inf       2         :math:`\| |A|\mathbf 1\|_2` (upper bound)
+    inf       2         $\| |A|\mathbf 1\|_2$ (upper bound)
     ========  ========  =============================================
     """
     p, q = _check_norm("noise_norm", noise_norm), _check_norm("error_norm", error_norm)
@@ -193,7 +193,7 @@ def _disturbed_states(estimator, states) -> tuple[int, ...]:
 
 
 def sensitivities(local: LocalProblem, states, rtol) -> tuple[list[np.ndarray], bool]:
-    r"""Rows :math:`\theta` of :math:`H^{-1}G` for inputs, outputs and model error."""
+    r"""Rows $\theta$ of $H^{-1}G$ for inputs, outputs and model error."""
     _, _, hessian = hessian_at_solution(local)
     inverse, flat, _ = relative_inverse(hessian, variable_scales(local.values), rtol)
     mixed = mixed_derivatives(local.values, local.problem, model=local.model, layout=local.layout)
@@ -219,7 +219,7 @@ def parameter_error_bound(
     include_omega: bool = True,
     rtol: float = 1e-9,
 ) -> ParameterErrorBound:
-    r"""Constants :math:`M_u, M_z, M_\Delta` of Theorem 1 and the bound (5) for a fit.
+    r"""Constants $M_u, M_z, M_\Delta$ of Theorem 1 and the bound (5) for a fit.
 
     Parameters
     ----------
@@ -228,22 +228,25 @@ def parameter_error_bound(
     u, z : array-like or list of arrays
         The data it was fitted on.
     noise_u, noise_z, delta_norm : float, default=0.0
-        :math:`\|\eta^u\|_p`, :math:`\|\eta^z\|_p` and :math:`\|\tilde\Delta\|_p` (for
+        $\|\eta^u\|_p$, $\|\eta^z\|_p$ and $\|\tilde\Delta\|_p$ (for
         ``noise_norm=inf``: the largest absolute input noise, output noise and model error
-        over all samples). :meth:`ParameterErrorBound.evaluate` re-evaluates for other sizes.
+        over all samples).
+        [`ParameterErrorBound.evaluate`][sk_offwhite.certify.ParameterErrorBound.evaluate]
+        re-evaluates for other sizes.
     noise_norm : {inf, 2}, default=inf
-        :math:`p`, the norm of the perturbation sequences (the paper's figures use inf).
+        $p$, the norm of the perturbation sequences (the paper's figures use inf).
     error_norm : {2, inf}, default=2
-        :math:`q`, the norm of the parameter error :math:`\theta^* - \bar\theta`.
+        $q$, the norm of the parameter error $\theta^* - \bar\theta$.
     disturbed_states : sequence of int, default=None
-        State equations :math:`\tilde\Delta` acts on; ``None``: the estimator's
+        State equations $\tilde\Delta$ acts on; ``None``: the estimator's
         ``delta_states_`` (all states for a physics-only fit).
     sample_index : array-like, default=None
         As for ``fit``.
     include_omega : bool, default=True
-        Re-optimise the weights on the fitted support with :math:`\theta` (see module notes).
+        Re-optimise the weights on the fitted support with $\theta$ (see module notes).
     rtol : float, default=1e-9
-        Relative eigenvalue tolerance for :math:`H \succ 0` (as :func:`identifiability`).
+        Relative eigenvalue tolerance for $H \succ 0$ (as
+        [`identifiability`][sk_offwhite.certify.identifiability]).
 
     Returns
     -------

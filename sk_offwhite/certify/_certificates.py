@@ -1,70 +1,70 @@
 r"""Sparsity certificates: Theorems 2-3 (single-step, linear) and 4-5 (multi-step, local).
 
-Given a linear-in-parameters problem :math:`y = \Phi_\theta\theta + \Phi\omega + \eta`,
-:math:`\|\eta\|_2 \le \mu` (:mod:`._relaxation`), and a sparse estimate :math:`\hat\omega`
-with support :math:`S`, :math:`M = |S|` and :math:`\eta(\hat\omega) = \min_{i \in S}
-|\hat\omega_i|`:
+Given a linear-in-parameters problem $y = \Phi_\theta\theta + \Phi\omega + \eta$,
+$\|\eta\|_2 \le \mu$ (`_relaxation`), and a sparse estimate $\hat\omega$
+with support $S$, $M = |S|$ and $\eta(\hat\omega) = \min_{i \in S}
+|\hat\omega_i|$:
 
-1. :math:`\omega^v` solves (11): :math:`\min \|\omega\|_1` s.t.
-   :math:`\mathrm{sign}(\hat\omega_i)\omega_i \ge \eta(\hat\omega)` on :math:`S`,
-   :math:`|\omega_i| \le \eta(\hat\omega)` off :math:`S` (the paper's strict ``<`` is
+1. $\omega^v$ solves (11): $\min \|\omega\|_1$ s.t.
+   $\mathrm{sign}(\hat\omega_i)\omega_i \ge \eta(\hat\omega)$ on $S$,
+   $|\omega_i| \le \eta(\hat\omega)$ off $S$ (the paper's strict ``<`` is
    relaxed to its closure, as a convex solver requires), and
-   :math:`\|\Upsilon_0(y - \Phi\omega)\|_2 \le \mu`, with
-   :math:`\Upsilon_0 = I - \Phi_\theta\Phi_\theta^\dagger`.
-2. With :math:`e = e^*(y, \omega^v) = \Upsilon_0 (y - \Phi\omega^v)` (Lemma 2) and the
-   *projected dictionary* :math:`Q = \Upsilon_0\Phi` (columns :math:`q_j`), the threshold
+   $\|\Upsilon_0(y - \Phi\omega)\|_2 \le \mu$, with
+   $\Upsilon_0 = I - \Phi_\theta\Phi_\theta^\dagger$.
+2. With $e = e^*(y, \omega^v) = \Upsilon_0 (y - \Phi\omega^v)$ (Lemma 2) and the
+   *projected dictionary* $Q = \Upsilon_0\Phi$ (columns $q_j$), the threshold
 
-   .. math::
+   $$
+   \tau = \frac{\|e\|_{(Q,1)} + \|e\|_{(Q,2M)}}{\sigma^2_{2M}(Q)}, \qquad
+   \|e\|_{(Q,n)} = \Big(\sum_{j \in \mathcal{I}_n(e)} (e^\top q_j)^2\Big)^{1/2}, \qquad
+   \sigma^2_n(Q) = \min_{\|x\|_0 \le n} \frac{\|Qx\|_2^2}{\|x\|_2^2}.
+   $$
 
-      \tau = \frac{\|e\|_{(Q,1)} + \|e\|_{(Q,2M)}}{\sigma^2_{2M}(Q)}, \qquad
-      \|e\|_{(Q,n)} = \Big(\sum_{j \in \mathcal{I}_n(e)} (e^\top q_j)^2\Big)^{1/2}, \qquad
-      \sigma^2_n(Q) = \min_{\|x\|_0 \le n} \frac{\|Qx\|_2^2}{\|x\|_2^2}.
+3. $\lambda = \{i : |\omega^v_i| > \tau\}$, the bound (12)
+   $\bar\kappa_e = M - |\lambda|$, and the verdict (13): if $\tau <
+   \eta(\hat\omega)$, $\hat\omega$ is maximally sparse and has the support of the
+   sparsest feasible $\bar\omega$ (margin $\eta(\hat\omega) - \tau$).
 
-3. :math:`\lambda = \{i : |\omega^v_i| > \tau\}`, the bound (12)
-   :math:`\bar\kappa_e = M - |\lambda|`, and the verdict (13): if :math:`\tau <
-   \eta(\hat\omega)`, :math:`\hat\omega` is maximally sparse and has the support of the
-   sparsest feasible :math:`\bar\omega` (margin :math:`\eta(\hat\omega) - \tau`).
-
-**Sparsity level.** Theorem 3's proof applies Theorem 2 to :math:`\bar\omega` and
-:math:`\omega^v`; their difference has at most :math:`\|\omega^v\|_0 + \|\bar\omega\|_0
-\le \|\omega^v\|_0 + M` non-zeros (:math:`\hat\omega` is feasible, so
-:math:`\|\bar\omega\|_0 \le M`), while :math:`\omega^v` may have more than :math:`M`
-(the vehicle's has 6-10 against :math:`M = 3`). By default (``level='vertex'``)
-:math:`\sigma^2_n` and :math:`\|e\|_{(Q,n)}` in :math:`\tau` use
-:math:`n = \min(\|\omega^v\|_0 + M, m')`; ``level='2M'`` gives the paper's literal
-:math:`2M`, valid when :math:`\|\omega^v\|_0 \le M`. Below, :math:`2M` stands for the
+**Sparsity level.** Theorem 3's proof applies Theorem 2 to $\bar\omega$ and
+$\omega^v$; their difference has at most $\|\omega^v\|_0 + \|\bar\omega\|_0
+\le \|\omega^v\|_0 + M$ non-zeros ($\hat\omega$ is feasible, so
+$\|\bar\omega\|_0 \le M$), while $\omega^v$ may have more than $M$
+(the vehicle's has 6-10 against $M = 3$). By default (``level='vertex'``)
+$\sigma^2_n$ and $\|e\|_{(Q,n)}$ in $\tau$ use
+$n = \min(\|\omega^v\|_0 + M, m')$; ``level='2M'`` gives the paper's literal
+$2M$, valid when $\|\omega^v\|_0 \le M$. Below, $2M$ stands for the
 level used.
 
-**Interpretation.** The paper writes :math:`\sigma^2_{2M}(\Upsilon_0)` and
-:math:`\|\cdot\|_{(\Upsilon_0, n)}`; the matrix whose columns enter is the projected
-dictionary :math:`\Upsilon_0\Phi` (the proof applies Gribonval et al. to
-:math:`\Upsilon_0 y = \Upsilon_0\Phi\omega + e^*`), which also makes :math:`\tau` carry
-the units of :math:`\omega`. In the multi-step case (Theorem 5) the same computation runs on
-the local linearisation: :math:`\Phi_\theta = J_\theta`, :math:`\Phi = J_\omega`,
-:math:`Q = \Upsilon_\ell J_\omega`.
+**Interpretation.** The paper writes $\sigma^2_{2M}(\Upsilon_0)$ and
+$\|\cdot\|_{(\Upsilon_0, n)}$; the matrix whose columns enter is the projected
+dictionary $\Upsilon_0\Phi$ (the proof applies Gribonval et al. to
+$\Upsilon_0 y = \Upsilon_0\Phi\omega + e^*$), which also makes $\tau$ carry
+the units of $\omega$. In the multi-step case (Theorem 5) the same computation runs on
+the local linearisation: $\Phi_\theta = J_\theta$, $\Phi = J_\omega$,
+$Q = \Upsilon_\ell J_\omega$.
 
 **Columns confounded with the physics.** A dictionary column in the span of
-:math:`\Phi_\theta` (:math:`\Upsilon_0\varphi_j = 0`, e.g. a dictionary term equal to a
-physical regressor) makes :math:`\sigma^2_{2M} = 0` for every :math:`M`, so the literal
-test could never pass. Such an :math:`\omega_j` never appears in a maximally sparse solution
-(zeroing it and absorbing it into :math:`\theta` keeps the residual), so (9) is unchanged
-when these columns are removed; :math:`\sigma^2_{2M}` and :math:`\|\cdot\|_{(Q,n)}` are
+$\Phi_\theta$ ($\Upsilon_0\varphi_j = 0$, e.g. a dictionary term equal to a
+physical regressor) makes $\sigma^2_{2M} = 0$ for every $M$, so the literal
+test could never pass. Such an $\omega_j$ never appears in a maximally sparse solution
+(zeroing it and absorbing it into $\theta$ keeps the residual), so (9) is unchanged
+when these columns are removed; $\sigma^2_{2M}$ and $\|\cdot\|_{(Q,n)}$ are
 computed on the remaining columns, and an estimate whose support uses a confounded column
 is reported as not certifiable.
 
-**Exact or bound.** :math:`\sigma^2_{2M}` is the smallest eigenvalue of
-:math:`Q_S^\top Q_S` over all supports of size :math:`k = \min(2M, m')` (``m'`` columns
+**Exact or bound.** $\sigma^2_{2M}$ is the smallest eigenvalue of
+$Q_S^\top Q_S$ over all supports of size $k = \min(2M, m')$ (``m'`` columns
 left; larger supports only lower it). It is exact by enumeration when
-:math:`\binom{m'}{k} \le` ``max_subsets`` (default 20 000: every support size for
-:math:`m' \le 16`); otherwise the largest of two valid lower bounds is used,
-:math:`\lambda_{\min}(Q^\top Q)` and the Gershgorin bound
-:math:`\min_i (G_{ii} - \text{sum of the } k-1 \text{ largest } |G_{ij}|)`, which keeps the
+$\binom{m'}{k} \le$ ``max_subsets`` (default 20 000: every support size for
+$m' \le 16$); otherwise the largest of two valid lower bounds is used,
+$\lambda_{\min}(Q^\top Q)$ and the Gershgorin bound
+$\min_i (G_{ii} - \text{sum of the } k-1 \text{ largest } |G_{ij}|)$, which keeps the
 certificate valid but conservative; the result says which.
 
 **Unit-norm columns** (``normalize_columns=True``). The test runs on
-:math:`\Phi D^{-1}` with :math:`D = \mathrm{diag}(\|\varphi_j\|_2)` and
-:math:`\omega' = D\omega`. Supports, and hence maximal sparsity, are the same for both;
-the :math:`\ell_1` objective of (11), :math:`\eta`, :math:`\tau` and :math:`\sigma^2_{2M}`
+$\Phi D^{-1}$ with $D = \mathrm{diag}(\|\varphi_j\|_2)$ and
+$\omega' = D\omega$. Supports, and hence maximal sparsity, are the same for both;
+the $\ell_1$ objective of (11), $\eta$, $\tau$ and $\sigma^2_{2M}$
 are those of the rescaled problem, where no term is cheap only because its regressor is
 large.
 """
@@ -102,7 +102,7 @@ _CHUNK = 4096
 
 
 def project_out(phi_theta: np.ndarray, matrix: np.ndarray) -> np.ndarray:
-    r""":math:`\Upsilon(\Phi_\theta) A = (I - \Phi_\theta\Phi_\theta^\dagger) A` (rank by SVD)."""
+    r"""$\Upsilon(\Phi_\theta) A = (I - \Phi_\theta\Phi_\theta^\dagger) A$ (rank by SVD)."""
     if phi_theta.shape[1] == 0:
         return matrix.copy()
     u, s, _ = np.linalg.svd(phi_theta, full_matrices=False)
@@ -112,13 +112,13 @@ def project_out(phi_theta: np.ndarray, matrix: np.ndarray) -> np.ndarray:
 
 
 def confounded_columns(phi: np.ndarray, projected: np.ndarray, rtol: float = 1e-8) -> np.ndarray:
-    r"""Columns in the span of :math:`\Phi_\theta`: :math:`\|\Upsilon_0\varphi_j\| \le` ``rtol``
-    :math:`\|\varphi_j\|`."""
+    r"""Columns in the span of $\Phi_\theta$: $\|\Upsilon_0\varphi_j\| \le$ ``rtol``
+    $\|\varphi_j\|$."""
     return np.linalg.norm(projected, axis=0) <= rtol * np.linalg.norm(phi, axis=0)
 
 
 def top_inner_norm(e: np.ndarray, q: np.ndarray, n: int) -> float:
-    r""":math:`\|e\|_{(Q,n)}`: root sum of squares of the ``n`` largest :math:`|e^\top q_j|`."""
+    r"""$\|e\|_{(Q,n)}$: root sum of squares of the ``n`` largest $|e^\top q_j|$."""
     inner = np.sort(np.abs(q.T @ e))[::-1]
     return float(np.sqrt(np.sum(inner[:n] ** 2)))
 
@@ -144,7 +144,7 @@ def _gershgorin_bound(gram: np.ndarray, k: int) -> float:
 def restricted_eigenvalue(
     q: np.ndarray, n: int, *, max_subsets: int = MAX_SUBSETS
 ) -> tuple[float, bool]:
-    r""":math:`\sigma^2_n(Q) = \min_{\|x\|_0 \le n} \|Qx\|_2^2 / \|x\|_2^2`, exact or a lower bound.
+    r"""$\sigma^2_n(Q) = \min_{\|x\|_0 \le n} \|Qx\|_2^2 / \|x\|_2^2$, exact or a lower bound.
 
     Parameters
     ----------
@@ -152,13 +152,13 @@ def restricted_eigenvalue(
     n : int
         Sparsity level (capped at ``m``).
     max_subsets : int, default=20000
-        Enumerate all :math:`\binom{m}{\min(n, m)}` supports when there are at most this many.
+        Enumerate all $\binom{m}{\min(n, m)}$ supports when there are at most this many.
 
     Returns
     -------
     value : float
         The exact value, or the valid lower bound
-        :math:`\max(\lambda_{\min}(Q^\top Q), \text{Gershgorin})` clipped at 0.
+        $\max(\lambda_{\min}(Q^\top Q), \text{Gershgorin})$ clipped at 0.
     exact : bool
         ``True`` when ``value`` is exact.
     """
@@ -185,7 +185,7 @@ def _vertex_problem(problem: LinearProblem, omega_hat: np.ndarray, eta: float):
 
 
 def sparsity_vertex(problem: LinearProblem, omega_hat: np.ndarray) -> tuple[str, np.ndarray | None]:
-    r"""Solve (11) for :math:`\omega^v`; returns ``(status, omega_v)`` (``None`` unless optimal)."""
+    r"""Solve (11) for $\omega^v$; returns ``(status, omega_v)`` (``None`` unless optimal)."""
     eta = float(np.min(np.abs(omega_hat[omega_hat != 0])))
     prob, omega = _vertex_problem(problem, omega_hat, eta)
     status = solve_status(prob)
@@ -197,7 +197,7 @@ def sparsity_vertex(problem: LinearProblem, omega_hat: np.ndarray) -> tuple[str,
 @dataclass(frozen=True)
 class _Geometry:
     r"""Projected dictionary quantities shared by Theorems 2 and 3 (``projected_y``:
-    :math:`\Upsilon_0 y`, which the vertex search starts from)."""
+    $\Upsilon_0 y$, which the vertex search starts from)."""
 
     projected: np.ndarray
     kept: np.ndarray
@@ -208,7 +208,7 @@ class _Geometry:
 
 
 def _geometry(problem: LinearProblem, level: int, max_subsets: int) -> _Geometry:
-    """Projected dictionary, kept columns and :math:`\\sigma^2_n` at ``n = min(level, m')``."""
+    """Projected dictionary, kept columns and $\\sigma^2_n$ at ``n = min(level, m')``."""
     projected = project_out(problem.phi_theta, problem.phi)
     projected_y = project_out(problem.phi_theta, problem.y[:, None])[:, 0]
     kept = ~confounded_columns(problem.phi, projected)
@@ -217,7 +217,7 @@ def _geometry(problem: LinearProblem, level: int, max_subsets: int) -> _Geometry
 
 
 def _at_level(geometry: _Geometry, level: int, max_subsets: int) -> _Geometry:
-    """``geometry`` with :math:`\\sigma^2_n`, ``n = min(level, m')`` (``m'`` kept columns)."""
+    """``geometry`` with $\\sigma^2_n$, ``n = min(level, m')`` (``m'`` kept columns)."""
     n_sparse = min(int(level), int(geometry.kept.sum()))
     q = geometry.projected[:, geometry.kept]
     sigma2, exact = restricted_eigenvalue(q, n_sparse, max_subsets=max_subsets)
@@ -225,16 +225,16 @@ def _at_level(geometry: _Geometry, level: int, max_subsets: int) -> _Geometry:
 
 
 def vertex_support_size(problem: LinearProblem, omega_v: np.ndarray, kept, rtol: float = 1e-6):
-    r""":math:`\|\omega^v\|_0` on the kept columns: terms whose contribution
-    :math:`|\omega^v_j|\,\|\varphi_j\|_2` exceeds ``rtol`` times the largest (an
-    interior-point :math:`\omega^v` is never exactly sparse)."""
+    r"""$\|\omega^v\|_0$ on the kept columns: terms whose contribution
+    $|\omega^v_j|\,\|\varphi_j\|_2$ exceeds ``rtol`` times the largest (an
+    interior-point $\omega^v$ is never exactly sparse)."""
     size = np.abs(omega_v) * np.linalg.norm(problem.phi, axis=0)
     return int(np.count_nonzero((size > rtol * np.max(size, initial=0.0)) & kept))
 
 
 def sparsity_level(m_support: int, vertex_size: int, rule: str) -> int:
-    r"""The sparsity level :math:`n` of :math:`\sigma^2_n` and :math:`\|e\|_{(Q,n)}` in
-    :math:`\tau`: ``'vertex'`` :math:`\|\omega^v\|_0 + M`, ``'2M'`` the paper's :math:`2M`."""
+    r"""The sparsity level $n$ of $\sigma^2_n$ and $\|e\|_{(Q,n)}$ in
+    $\tau$: ``'vertex'`` $\|\omega^v\|_0 + M$, ``'2M'`` the paper's $2M$."""
     if rule == "vertex":
         return int(vertex_size) + int(m_support)
     if rule == "2M":
@@ -243,9 +243,9 @@ def sparsity_level(m_support: int, vertex_size: int, rule: str) -> int:
 
 
 def support_threshold(problem: LinearProblem, geometry: _Geometry, omega: np.ndarray) -> float:
-    r""":math:`\tau = (\|e^*\|_{(Q,1)} + \|e^*\|_{(Q,2M)}) / \sigma^2_{2M}(Q)`.
+    r"""$\tau = (\|e^*\|_{(Q,1)} + \|e^*\|_{(Q,2M)}) / \sigma^2_{2M}(Q)$.
 
-    With :math:`e^* = \Upsilon_0(y - \Phi\omega)`; ``inf`` when :math:`\sigma^2_{2M} = 0`.
+    With $e^* = \Upsilon_0(y - \Phi\omega)$; ``inf`` when $\sigma^2_{2M} = 0$.
     """
     if geometry.sigma2 <= 0:
         return np.inf
@@ -258,7 +258,7 @@ def support_threshold(problem: LinearProblem, geometry: _Geometry, omega: np.nda
 def _residual_norm(problem: LinearProblem, omega: np.ndarray) -> float:
     r"""Optimal compensation error norm.
 
-    :math:`\|\Upsilon_0(y - \Phi\omega)\|_2 = \min_\theta \|y - \Phi_\theta\theta - \Phi\omega\|_2`.
+    $\|\Upsilon_0(y - \Phi\omega)\|_2 = \min_\theta \|y - \Phi_\theta\theta - \Phi\omega\|_2$.
     """
     residual = (problem.y - problem.phi @ omega)[:, None]
     return float(np.linalg.norm(project_out(problem.phi_theta, residual)))
@@ -271,7 +271,7 @@ class SparsityCertificate:
     Attributes
     ----------
     certified : bool or None
-        ``True``: :math:`\hat\omega` is (locally) maximally sparse; ``False``: cannot
+        ``True``: $\hat\omega$ is (locally) maximally sparse; ``False``: cannot
         certify; ``None``: the convex program (11) was not solved to optimality (see
         ``status``), so no verdict is given.
     reason : str
@@ -279,57 +279,58 @@ class SparsityCertificate:
     status : str
         cvxpy status of (11).
     eta : float
-        :math:`\eta(\hat\omega)`, the smallest nonzero :math:`|\hat\omega_i|`.
+        $\eta(\hat\omega)$, the smallest nonzero $|\hat\omega_i|$.
     threshold : float
-        :math:`\tau` of (13) (``inf`` when :math:`\sigma^2_{2M} = 0`; ``nan`` without
-        :math:`\omega^v`).
+        $\tau$ of (13) (``inf`` when $\sigma^2_{2M} = 0$; ``nan`` without
+        $\omega^v$).
     margin : float
-        :math:`\eta(\hat\omega) - \tau` at (11)'s solution, :math:`\min_{i \in S}
-        \mathrm{sign}(\hat\omega_i)\omega^v_i - \tau` at a searched vertex (positive when
+        $\eta(\hat\omega) - \tau$ at (11)'s solution, $\min_{i \in S}
+        \mathrm{sign}(\hat\omega_i)\omega^v_i - \tau$ at a searched vertex (positive when
         certified).
     theorem2_bound : float
-        Theorem 2's :math:`\|\omega' - \hat\omega\|_\infty` bound, computed at :math:`\hat\omega`.
+        Theorem 2's $\|\omega' - \hat\omega\|_\infty$ bound, computed at $\hat\omega$.
     kappa_bar : int or None
-        :math:`\bar\kappa_e = M - |\lambda|` of (12).
+        $\bar\kappa_e = M - |\lambda|$ of (12).
     sigma2 : float
-        :math:`\sigma^2_n` of the projected dictionary (confounded columns removed) at the
-        level :math:`n` = ``sparsity_level`` used by :math:`\tau` (:math:`2M` when
-        :math:`\omega^v` is not available).
+        $\sigma^2_n$ of the projected dictionary (confounded columns removed) at the
+        level $n$ = ``sparsity_level`` used by $\tau$ ($2M$ when
+        $\omega^v$ is not available).
     sigma2_exact : bool
         ``True``: exact by enumeration; ``False``: a valid lower bound.
     constraint_active : bool or None
-        Whether (11d) is active at :math:`\omega^v` (a hypothesis of Theorem 3).
+        Whether (11d) is active at $\omega^v$ (a hypothesis of Theorem 3).
     omega_hat, omega_v : ndarray
         The estimate and the solution of (11) (``None`` unless solved).
     lambda_set : ndarray of bool or None
-        :math:`\lambda = \{i : |\omega^v_i| > \tau\}`.
+        $\lambda = \{i : |\omega^v_i| > \tau\}$.
     confounded : ndarray of bool
-        Dictionary columns in the span of :math:`\Phi_\theta` (excluded, see module notes).
+        Dictionary columns in the span of $\Phi_\theta$ (excluded, see module notes).
     mu : float
     feature_names : tuple of str
     column_scales : ndarray or None
-        :math:`d_j = \|\varphi_j\|_2` when the test ran on unit-norm columns; then
+        $d_j = \|\varphi_j\|_2$ when the test ran on unit-norm columns; then
         ``omega_hat``, ``omega_v``, ``eta``, ``threshold``, ``margin`` and
-        ``theorem2_bound`` are in the units of :math:`\omega' = D\omega`.
+        ``theorem2_bound`` are in the units of $\omega' = D\omega$.
     sparsity_level : int
-        :math:`n` of :math:`\sigma^2_n` and :math:`\|e\|_{(Q,n)}` in :math:`\tau`:
-        :math:`\min(\|\omega^v\|_0 + M, m')` by default (``level='vertex'``), or
-        :math:`\min(2M, m')`.
+        $n$ of $\sigma^2_n$ and $\|e\|_{(Q,n)}$ in $\tau$:
+        $\min(\|\omega^v\|_0 + M, m')$ by default (``level='vertex'``), or
+        $\min(2M, m')$.
     vertex_size : int or None
-        :math:`\|\omega^v\|_0` (kept columns; terms above :math:`10^{-6}` of the largest
-        contribution :math:`|\omega^v_j|\,\|\varphi_j\|_2`).
+        $\|\omega^v\|_0$ (kept columns; terms above $10^{-6}$ of the largest
+        contribution $|\omega^v_j|\,\|\varphi_j\|_2$).
     vertex : {'l1', 'searched'}
-        Which :math:`\omega^v` the verdict rests on: (11)'s :math:`\ell_1` minimiser (the
-        paper's), or the vertex :func:`~sk_offwhite.certify._vertex.search_vertex` found when
+        Which $\omega^v$ the verdict rests on: (11)'s $\ell_1$ minimiser (the
+        paper's), or the vertex `search_vertex` found when
         the test failed there (``vertex='search'``); ``omega_v``, ``threshold``, ``margin``,
         ``lambda_set``, ``kappa_bar``, ``sigma2`` and the level are that vertex's.
     l1_threshold : float
-        :math:`\tau` at (11)'s solution, whichever vertex the verdict rests on.
+        $\tau$ at (11)'s solution, whichever vertex the verdict rests on.
     diagnosis : SparsityDiagnosis or None
-        Why the verdict is what it is: the residual of :math:`\hat\omega` against
-        :math:`\mu`, :math:`\|\Upsilon_0\Phi\hat\omega\|_2`, the sparsest feasible
-        support with fewer than :math:`M` terms (if any) and :math:`\tau/\eta`
-        (``None`` with ``diagnose=False``); :meth:`explain` states it in a sentence.
+        Why the verdict is what it is: the residual of $\hat\omega$ against
+        $\mu$, $\|\Upsilon_0\Phi\hat\omega\|_2$, the sparsest feasible
+        support with fewer than $M$ terms (if any) and $\tau/\eta$
+        (``None`` with ``diagnose=False``);
+        [`explain`][sk_offwhite.certify.SparsityCertificate.explain] states it in a sentence.
     """
 
     certified: bool | None
@@ -397,7 +398,7 @@ def _check_omega_hat(omega_hat, m: int) -> np.ndarray:
 
 def _verdict(threshold, bound, checks: dict, bound_name: str) -> tuple[bool, str]:
     r"""Condition (13) after the hypotheses it rests on (``checks``: name -> holds):
-    ``threshold`` :math:`\tau` below ``bound``, named ``bound_name``."""
+    ``threshold`` $\tau$ below ``bound``, named ``bound_name``."""
     if not checks["feasible"]:
         return (
             False,
@@ -427,7 +428,8 @@ def certify_problem(
     level: str = "vertex",
     vertex: str = "search",
 ) -> SparsityCertificate:
-    """:func:`certify_sparsity` on an already validated :class:`LinearProblem`."""
+    """[`certify_sparsity`][sk_offwhite.certify.certify_sparsity] on an already validated
+    `LinearProblem`."""
     omega_hat = _check_omega_hat(omega_hat, problem.n_features)
     sparsity_level(1, 0, level)  # validates ``level`` before any solve
     if vertex not in ("search", "l1"):
@@ -490,8 +492,8 @@ def _test_problem(
 def _at_vertex(
     problem, geometry, omega_v, support, checks, compared, rules, searched=False
 ) -> dict:
-    r"""Condition (13) at ``omega_v``: :math:`\tau` at the level of ``rules``, compared with
-    ``compared`` (:math:`\eta(\hat\omega)` at (11)'s solution); the certificate's fields.
+    r"""Condition (13) at ``omega_v``: $\tau$ at the level of ``rules``, compared with
+    ``compared`` ($\eta(\hat\omega)$ at (11)'s solution); the certificate's fields.
     A searched vertex's non-zeros are counted exactly (no tolerance): its level is then
     rigorous whatever the solver's round-off."""
     rtol = 0.0 if searched else 1e-6
@@ -512,9 +514,9 @@ def _at_vertex(
 
 
 def _searched(problem, geometry, omega_hat, omega_v, checks, rules) -> dict | None:
-    r""":func:`_at_vertex` at the vertex :func:`~._vertex.search_vertex` finds from
-    ``omega_v`` (``None`` when it finds none): its residual must reach :math:`\mu`
-    without tolerance, and :math:`\tau` is compared with its own smallest signed support entry."""
+    r"""`_at_vertex` at the vertex `search_vertex` finds from
+    ``omega_v`` (``None`` when it finds none): its residual must reach $\mu$
+    without tolerance, and $\tau$ is compared with its own smallest signed support entry."""
     found = search_vertex(
         geometry.projected, geometry.projected_y, problem.mu, geometry.kept, omega_hat, omega_v
     )
@@ -528,7 +530,8 @@ def _searched(problem, geometry, omega_hat, omega_v, checks, rules) -> dict | No
 
 
 def _certificate(certified, reason: str, values: dict) -> SparsityCertificate:
-    """A :class:`SparsityCertificate`; quantities of (11) missing from ``values`` are unset."""
+    """A [`SparsityCertificate`][sk_offwhite.certify.SparsityCertificate]; quantities of (11)
+    missing from ``values`` are unset."""
     unset = dict(threshold=np.nan, margin=np.nan, constraint_active=None, omega_v=None)
     unset.update(lambda_set=None, kappa_bar=None)
     return SparsityCertificate(certified=certified, reason=reason, **{**unset, **values})
@@ -550,30 +553,30 @@ def certify_sparsity(
     theta_names=None,
     feature_names=None,
 ) -> SparsityCertificate:
-    r"""Is the support of :math:`\hat\omega` the maximally sparse one? (Theorems 2-3, eqs. 11-13.)
+    r"""Is the support of $\hat\omega$ the maximally sparse one? (Theorems 2-3, eqs. 11-13.)
 
-    Solves (11) for :math:`\omega^v`, computes :math:`\tau`, the bound (12) and the
-    verdict (13) on the linear problem :math:`y = \Phi_\theta\theta + \Phi\omega + \eta`,
-    :math:`\|\eta\|_2 \le \mu` (see the module notes for the interpretation of
-    :math:`\sigma^2_{2M}` and of confounded columns).
+    Solves (11) for $\omega^v$, computes $\tau$, the bound (12) and the
+    verdict (13) on the linear problem $y = \Phi_\theta\theta + \Phi\omega + \eta$,
+    $\|\eta\|_2 \le \mu$ (see the module notes for the interpretation of
+    $\sigma^2_{2M}$ and of confounded columns).
 
     Parameters
     ----------
     phi_theta : array-like of shape (T, n_theta)
-        Physical regressors :math:`\Phi_\theta` (:math:`J_\theta` for Theorem 5).
+        Physical regressors $\Phi_\theta$ ($J_\theta$ for Theorem 5).
     phi : array-like of shape (T, m)
-        Dictionary :math:`\Phi` (:math:`J_\omega` for Theorem 5).
+        Dictionary $\Phi$ ($J_\omega$ for Theorem 5).
     y : array-like of shape (T,)
-        Observations (the shifted residual :math:`\tilde z_\ell` for Theorem 5).
+        Observations (the shifted residual $\tilde z_\ell$ for Theorem 5).
     mu : float
-        Noise bound :math:`\mu > 0`.
+        Noise bound $\mu > 0$.
     omega_hat : array-like of shape (m,)
         The estimate to certify; its exact zeros are the complement of the support.
     max_subsets : int, default=20000
-        Enumeration limit for the exact :math:`\sigma^2_{2M}` (else a lower bound).
+        Enumeration limit for the exact $\sigma^2_{2M}$ (else a lower bound).
     active_rtol : float, default=1e-3
-        (11d) counts as active when :math:`\|\Upsilon_0(y - \Phi\omega^v)\|_2 \ge
-        \mu(1 - \text{active\_rtol})` (interior-point solutions meet complementarity only
+        (11d) counts as active when $\|\Upsilon_0(y - \Phi\omega^v)\|_2 \ge
+        \mu(1 - \text{active\_rtol})$ (interior-point solutions meet complementarity only
         approximately; about 2e-4 was seen on a noise-free vehicle fit). The same tolerance
         is allowed on the feasibility of ``omega_hat``.
     normalize_columns : bool, default=False
@@ -581,20 +584,20 @@ def certify_sparsity(
         notes); use it with a ``omega_hat`` from ``sparse_relaxation(...,
         normalize_columns=True)``. ``omega_hat`` is given in the original units.
     level : {'vertex', '2M'}, default='vertex'
-        Sparsity level :math:`n` of :math:`\sigma^2_n` and :math:`\|e\|_{(Q,n)}` in
-        :math:`\tau`. ``'vertex'``: :math:`n = \min(\|\omega^v\|_0 + M, m')`, the
-        support size of :math:`\bar\omega - \omega^v` when :math:`\|\bar\omega\|_0
-        \le M` (rigorous: Theorem 2 is applied to :math:`\bar\omega` and
-        :math:`\omega^v`, and :math:`\omega^v` may have more than :math:`M` non-zeros).
-        ``'2M'``: the paper's literal :math:`\min(2M, m')`, valid when
-        :math:`\|\omega^v\|_0 \le M`. Theorem 2's bound at :math:`\hat\omega`
-        (``theorem2_bound``) always uses :math:`2M`.
+        Sparsity level $n$ of $\sigma^2_n$ and $\|e\|_{(Q,n)}$ in
+        $\tau$. ``'vertex'``: $n = \min(\|\omega^v\|_0 + M, m')$, the
+        support size of $\bar\omega - \omega^v$ when $\|\bar\omega\|_0
+        \le M$ (rigorous: Theorem 2 is applied to $\bar\omega$ and
+        $\omega^v$, and $\omega^v$ may have more than $M$ non-zeros).
+        ``'2M'``: the paper's literal $\min(2M, m')$, valid when
+        $\|\omega^v\|_0 \le M$. Theorem 2's bound at $\hat\omega$
+        (``theorem2_bound``) always uses $2M$.
     vertex : {'search', 'l1'}, default='search'
-        ``'l1'``: the paper's test, at (11)'s :math:`\ell_1` minimiser :math:`\omega^v`.
+        ``'l1'``: the paper's test, at (11)'s $\ell_1$ minimiser $\omega^v$.
         ``'search'``: where that test fails, also at the vertex with the largest margin a
-        convex-concave search reaches from it (:mod:`~sk_offwhite.certify._vertex`; every
-        vertex with :math:`\|e^*(\omega^v)\|_2 \ge \mu` is valid in Theorem 3's proof,
-        which never uses the :math:`\ell_1` optimality). A sufficient test either way:
+        convex-concave search reaches from it (`_vertex`; every
+        vertex with $\|e^*(\omega^v)\|_2 \ge \mu$ is valid in Theorem 3's proof,
+        which never uses the $\ell_1$ optimality). A sufficient test either way:
         ``'search'`` certifies whatever ``'l1'`` does, and more.
     theta_names, feature_names : sequence of str, optional
         Names for the summary.
@@ -608,7 +611,7 @@ def certify_sparsity(
     Raises
     ------
     ValueError
-        On bad shapes, NaN/inf, :math:`\mu \le 0` or an all-zero ``omega_hat``.
+        On bad shapes, NaN/inf, $\mu \le 0$ or an all-zero ``omega_hat``.
     """
     problem = linear_problem(
         phi_theta, phi, y, mu, theta_names=theta_names, feature_names=feature_names

@@ -1,29 +1,29 @@
 r"""Why a sparsity certificate holds or fails: the sparsest feasible support, searched.
 
 Theorem 3 (and its local form, Theorem 5) is a *sufficient* test: "cannot certify" means
-either that the support :math:`S` of :math:`\hat\omega` is not the maximally sparse one
+either that the support $S$ of $\hat\omega$ is not the maximally sparse one
 (Definition 3: a support with fewer terms also satisfies the data constraint) or that the
 test is too conservative to tell. The two are told apart by looking for a sparser support
-directly. On the problem :math:`y = \Phi_\theta\theta + \Phi\omega + \eta`,
-:math:`\|\eta\|_2 \le \mu`, with :math:`\Upsilon_0 = I - \Phi_\theta\Phi_\theta^\dagger`,
-the best residual of a support :math:`K` is
+directly. On the problem $y = \Phi_\theta\theta + \Phi\omega + \eta$,
+$\|\eta\|_2 \le \mu$, with $\Upsilon_0 = I - \Phi_\theta\Phi_\theta^\dagger$,
+the best residual of a support $K$ is
 
-.. math::
+$$
+r(K) = \min_{\theta, \omega_K} \|y - \Phi_\theta\theta - \Phi_K\omega_K\|_2
+     = \min_{\omega_K} \|\Upsilon_0 y - \Upsilon_0\Phi_K\omega_K\|_2 ,
+$$
 
-    r(K) = \min_{\theta, \omega_K} \|y - \Phi_\theta\theta - \Phi_K\omega_K\|_2
-         = \min_{\omega_K} \|\Upsilon_0 y - \Upsilon_0\Phi_K\omega_K\|_2 ,
+and $K$ is feasible when $r(K) \le \mu$.
+[`sparsest_feasible_support`][sk_offwhite.certify.sparsest_feasible_support] tries every support of
+size $k = 0, 1, \dots, M - 1$ (exhaustively while $\binom{m'}{k} \le$ ``max_subsets``, else by
+greedy forward selection, which can miss one) and returns the first feasible one. The residuals are
+computed exactly on a thin QR factorisation of $[\Upsilon_0\Phi\ \ \Upsilon_0 y]$, so each support
+costs an $(m'+1) \times k$ least-squares problem whatever $T$.
 
-and :math:`K` is feasible when :math:`r(K) \le \mu`. :func:`sparsest_feasible_support`
-tries every support of size :math:`k = 0, 1, \dots, M - 1` (exhaustively while
-:math:`\binom{m'}{k} \le` ``max_subsets``, else by greedy forward selection, which can
-miss one) and returns the first feasible one. The residuals are computed exactly on a
-thin QR factorisation of :math:`[\Upsilon_0\Phi\ \ \Upsilon_0 y]`, so each support costs
-an :math:`(m'+1) \times k` least-squares problem whatever :math:`T`.
-
-The diagnosis also reports :math:`\|\Upsilon_0\Phi\hat\omega\|_2`, the part of the
+The diagnosis also reports $\|\Upsilon_0\Phi\hat\omega\|_2$, the part of the
 estimated correction the physics cannot absorb (an estimate of
-:math:`\|\Upsilon J_\omega\bar\omega\|_2` in Section 5.1): when it is of the order of
-:math:`\mu`, the noise can hide the correction, or most of it, and a sparser support fits.
+$\|\Upsilon J_\omega\bar\omega\|_2$ in Section 5.1): when it is of the order of
+$\mu$, the noise can hide the correction, or most of it, and a sparser support fits.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ __all__ = ["SparsityDiagnosis", "diagnose", "sparsest_feasible_support"]
 
 
 def _projector(phi_theta: np.ndarray, matrix: np.ndarray) -> np.ndarray:
-    r""":math:`(I - \Phi_\theta\Phi_\theta^\dagger)` ``matrix`` (orthonormal basis by SVD)."""
+    r"""$(I - \Phi_\theta\Phi_\theta^\dagger)$ ``matrix`` (orthonormal basis by SVD)."""
     if phi_theta.shape[1] == 0:
         return matrix.copy()
     u, s, _ = np.linalg.svd(phi_theta, full_matrices=False)
@@ -50,7 +50,7 @@ def _projector(phi_theta: np.ndarray, matrix: np.ndarray) -> np.ndarray:
 
 @dataclass(frozen=True)
 class _Compressed:
-    """:math:`R` of the thin QR of :math:`[\\Upsilon_0\\Phi\\ \\Upsilon_0 y]`."""
+    """$R$ of the thin QR of $[\\Upsilon_0\\Phi\\ \\Upsilon_0 y]$."""
 
     columns: np.ndarray
     target: np.ndarray
@@ -63,7 +63,7 @@ def _compress(problem: LinearProblem) -> _Compressed:
 
 
 def _support_residual(compressed: _Compressed, support) -> float:
-    r""":math:`r(K)` of the support ``support`` (a sequence of column indices)."""
+    r"""$r(K)$ of the support ``support`` (a sequence of column indices)."""
     if len(support) == 0:
         return float(np.linalg.norm(compressed.target))
     columns = compressed.columns[:, list(support)]
@@ -95,7 +95,7 @@ def sparsest_feasible_support(
     exclude=None,
     max_subsets: int = 20_000,
 ) -> tuple[tuple[int, ...] | None, float, bool]:
-    r"""The smallest support :math:`K`, :math:`|K| \le` ``max_size``, with :math:`r(K) \le \mu`.
+    r"""The smallest support $K$, $|K| \le$ ``max_size``, with $r(K) \le \mu$.
 
     Parameters
     ----------
@@ -104,7 +104,7 @@ def sparsest_feasible_support(
         Largest support size tried (``M - 1`` to test the maximal sparsity of an
         ``M``-term estimate).
     exclude : array-like of bool, optional
-        Columns never used (those confounded with the physics add nothing to :math:`\theta`).
+        Columns never used (those confounded with the physics add nothing to $\theta$).
     max_subsets : int, default=20000
         Sizes with more supports than this are searched greedily.
 
@@ -114,7 +114,7 @@ def sparsest_feasible_support(
         Column indices of the first feasible support found (smallest size, then smallest
         residual), or ``None``.
     residual : float
-        Its :math:`r(K)`; when none is feasible, the smallest residual found at
+        Its $r(K)$; when none is feasible, the smallest residual found at
         ``max_size`` (``inf`` when ``max_size < 0``).
     exhaustive : bool
         ``True`` when every size was enumerated, so ``None`` proves that no such support
@@ -141,40 +141,41 @@ class SparsityDiagnosis:
     Attributes
     ----------
     support_size : int
-        :math:`M = |\mathrm{supp}\,\hat\omega|`.
+        $M = |\mathrm{supp}\,\hat\omega|$.
     mu : float
         The noise bound used.
     residual : float
-        :math:`\min_\theta \|y - \Phi_\theta\theta - \Phi\hat\omega\|_2`, the residual
-        :math:`\hat\omega` leaves (feasible when :math:`\le \mu`).
+        $\min_\theta \|y - \Phi_\theta\theta - \Phi\hat\omega\|_2$, the residual
+        $\hat\omega$ leaves (feasible when $\le \mu$).
     physics_residual : float
-        :math:`\|\Upsilon_0 y\|_2`, the residual with no correction at all.
+        $\|\Upsilon_0 y\|_2$, the residual with no correction at all.
     unexplained : float
-        :math:`\|\Upsilon_0\Phi\hat\omega\|_2`, the part of the estimated correction the
-        physics cannot absorb (estimate of :math:`\|\Upsilon J_\omega\bar\omega\|_2`).
+        $\|\Upsilon_0\Phi\hat\omega\|_2$, the part of the estimated correction the
+        physics cannot absorb (estimate of $\|\Upsilon J_\omega\bar\omega\|_2$).
     sparser_support : tuple of str or None
-        A support with fewer than :math:`M` terms that fits within :math:`\mu` (the
+        A support with fewer than $M$ terms that fits within $\mu$ (the
         smallest found), or ``None``.
     sparser_residual : float
-        Its residual, or (when ``None``) the best residual with :math:`M - 1` terms.
+        Its residual, or (when ``None``) the best residual with $M - 1$ terms.
     exhaustive : bool
         Whether the search enumerated every support (``None`` is then a proof).
     sigma2, tau, eta : float
-        :math:`\sigma^2_n`, :math:`\tau` and :math:`\eta(\hat\omega)` of the certificate.
+        $\sigma^2_n$, $\tau$ and $\eta(\hat\omega)$ of the certificate.
     certified : bool or None
         The certificate's verdict.
     reason : str
         The certificate's reason.
     sparsity_level : int
-        The level :math:`n` of :math:`\sigma^2_n` (``sigma2``) used by :math:`\tau`.
+        The level $n$ of $\sigma^2_n$ (``sigma2``) used by $\tau$.
     vertex : {'l1', 'searched'}
-        The certificate's vertex (see :class:`~sk_offwhite.certify.SparsityCertificate`).
+        The certificate's vertex (see
+        [`SparsityCertificate`][sk_offwhite.certify.SparsityCertificate]).
     compared : float
-        What :math:`\tau` was compared with: :math:`\eta(\hat\omega)` at (11)'s
-        solution, :math:`\min_{i \in S}\mathrm{sign}(\hat\omega_i)\omega^v_i` at a
+        What $\tau$ was compared with: $\eta(\hat\omega)$ at (11)'s
+        solution, $\min_{i \in S}\mathrm{sign}(\hat\omega_i)\omega^v_i$ at a
         searched vertex.
     l1_ratio : float
-        :math:`\tau/\eta(\hat\omega)` at (11)'s solution (``nan`` when not computed).
+        $\tau/\eta(\hat\omega)$ at (11)'s solution (``nan`` when not computed).
     """
 
     support_size: int
@@ -197,7 +198,7 @@ class SparsityDiagnosis:
 
     @property
     def sparser_exists(self) -> bool:
-        """A support with fewer terms than :math:`\\hat\\omega` fits within :math:`\\mu`."""
+        """A support with fewer terms than $\\hat\\omega$ fits within $\\mu$."""
         return self.sparser_support is not None
 
     @property
@@ -287,7 +288,8 @@ _SENTENCES = {
 def diagnose(
     problem: LinearProblem, certificate, *, max_subsets: int = 20_000
 ) -> SparsityDiagnosis:
-    r"""The :class:`SparsityDiagnosis` of a :class:`~sk_offwhite.certify.SparsityCertificate`.
+    r"""The [`SparsityDiagnosis`][sk_offwhite.certify.SparsityDiagnosis] of a
+    [`SparsityCertificate`][sk_offwhite.certify.SparsityCertificate].
 
     Parameters
     ----------
@@ -295,7 +297,7 @@ def diagnose(
         The problem the certificate was computed on (same units as its ``omega_hat``).
     certificate : SparsityCertificate
     max_subsets : int, default=20000
-        See :func:`sparsest_feasible_support`.
+        See [`sparsest_feasible_support`][sk_offwhite.certify.sparsest_feasible_support].
 
     Returns
     -------

@@ -1,27 +1,27 @@
-r"""Which :math:`\hat\omega` a certificate tests: the fit's own, pruned, optionally refitted.
+r"""Which $\hat\omega$ a certificate tests: the fit's own, pruned, optionally refitted.
 
 Remark 1 of Donati et al. lets Theorems 3 and 5 certify *any* estimate. Section 5.1
-certifies the multi-step fit's :math:`\hat\omega`, so :func:`certify_estimator` does too
-by default. On the local linearisation (:mod:`._linearise`) each term's size in the data
-is its contribution
+certifies the multi-step fit's $\hat\omega$, so
+[`certify_estimator`][sk_offwhite.certify.certify_estimator] does too by default. On the local
+linearisation (`_linearise`) each term's size in the data is its contribution
 
-.. math::
-
-    c_j = \|J_{\omega,j}\hat\omega_j\|_2 = |\hat\omega_j|\,\|J_{\omega,j}\|_2,
+$$
+c_j = \|J_{\omega,j}\hat\omega_j\|_2 = |\hat\omega_j|\,\|J_{\omega,j}\|_2,
+$$
 
 and a term whose contribution is below ``prune_tol`` (1 %) of the largest is set to zero
-(:func:`prune_by_contribution`): it moves the simulated output by less than a hundredth of
-the main term and would otherwise enter :math:`M` with a tiny
-:math:`\eta(\hat\omega) = \min_S |\hat\omega_i|`. The estimator's own pruning stage uses
+([`prune_by_contribution`][sk_offwhite.certify.prune_by_contribution]): it moves the simulated
+output by less than a hundredth of the main term and would otherwise enter $M$ with a tiny
+$\eta(\hat\omega) = \min_S |\hat\omega_i|$. The estimator's own pruning stage uses
 the same 1 % rule on its scaled penalty, so on a converged fit this seldom removes
 anything. Optionally the estimate is the least-squares refit on that support
-(:func:`~._relaxation.least_squares_refit`), which minimises the residual on it.
+(`least_squares_refit`), which minimises the residual on it.
 
-The noise bound :math:`\mu` can be *refined* to the residual the estimate actually
-leaves (:func:`refined_mu`), :math:`\mu_r = (1 + \epsilon)\,\min_\theta \|y -
-\Phi_\theta\theta - \Phi\hat\omega\|_2` with :math:`\epsilon = 0.01`: the smallest bound
-under which :math:`\hat\omega` is feasible, instead of the worst case :math:`b\sqrt{T}` of
-a per-sample bound :math:`|\eta_k| \le b`.
+The noise bound $\mu$ can be *refined* to the residual the estimate actually
+leaves ([`refined_mu`][sk_offwhite.certify.refined_mu]), $\mu_r = (1 + \epsilon)\,\min_\theta \|y -
+\Phi_\theta\theta - \Phi\hat\omega\|_2$ with $\epsilon = 0.01$: the smallest bound
+under which $\hat\omega$ is feasible, instead of the worst case $b\sqrt{T}$ of
+a per-sample bound $|\eta_k| \le b$.
 """
 
 from __future__ import annotations
@@ -42,12 +42,12 @@ __all__ = [
 def prune_by_contribution(
     problem: LinearProblem, omega: np.ndarray, tol: float = 0.01
 ) -> np.ndarray:
-    r"""Zero the terms with :math:`c_j < \text{tol}\,\max_k c_k`.
+    r"""Zero the terms with $c_j < \text{tol}\,\max_k c_k$.
 
     Parameters
     ----------
     problem : LinearProblem
-        Gives :math:`\Phi` (the columns :math:`J_{\omega,j}` on a linearisation).
+        Gives $\Phi$ (the columns $J_{\omega,j}$ on a linearisation).
     omega : ndarray of shape (m,)
     tol : float, default=0.01
         Relative threshold; ``0`` keeps every non-zero term.
@@ -64,15 +64,15 @@ def prune_by_contribution(
 
 
 def refit_on_support(problem: LinearProblem, omega: np.ndarray) -> np.ndarray:
-    r"""The least-squares :math:`\omega` on the support of ``omega`` (zeros elsewhere).
+    r"""The least-squares $\omega$ on the support of ``omega`` (zeros elsewhere).
 
-    :math:`(\theta, \omega_S) = \arg\min \|y - \Phi_\theta\theta - \Phi_S\omega_S\|_2`.
+    $(\theta, \omega_S) = \arg\min \|y - \Phi_\theta\theta - \Phi_S\omega_S\|_2$.
     """
     return least_squares_refit(problem, np.asarray(omega) != 0)[1]
 
 
 def estimate_residual(problem: LinearProblem, omega: np.ndarray) -> float:
-    r""":math:`\min_\theta \|y - \Phi_\theta\theta - \Phi\omega\|_2` (θ free, ω fixed)."""
+    r"""$\min_\theta \|y - \Phi_\theta\theta - \Phi\omega\|_2$ (θ free, ω fixed)."""
     target = problem.y - problem.phi @ np.asarray(omega, float)
     if problem.n_theta == 0:
         return float(np.linalg.norm(target))
@@ -81,9 +81,9 @@ def estimate_residual(problem: LinearProblem, omega: np.ndarray) -> float:
 
 
 def refined_mu(problem: LinearProblem, omega: np.ndarray, factor: float = 1.01) -> float:
-    r"""The refined noise bound :math:`\mu_r = \text{factor} \cdot \min_\theta \|y -
-    \Phi_\theta\theta - \Phi\omega\|_2` (strictly positive: at least ``1e-12`` times
-    :math:`\|y\|`)."""
+    r"""The refined noise bound $\mu_r = \text{factor} \cdot \min_\theta \|y -
+    \Phi_\theta\theta - \Phi\omega\|_2$ (strictly positive: at least ``1e-12`` times
+    $\|y\|$)."""
     floor = 1e-12 * max(float(np.linalg.norm(problem.y)), 1.0)
     return max(factor * estimate_residual(problem, omega), floor)
 
@@ -97,19 +97,19 @@ def select_estimate(
     refit: bool = False,
     normalize_columns: bool = False,
 ) -> np.ndarray:
-    r"""The :math:`\hat\omega` to certify: the fit's or the relaxation's, pruned, refitted.
+    r"""The $\hat\omega$ to certify: the fit's or the relaxation's, pruned, refitted.
 
     Parameters
     ----------
     problem : LinearProblem
-        The (local) problem; its :math:`\mu` is used only by ``estimate='relaxation'``.
+        The (local) problem; its $\mu$ is used only by ``estimate='relaxation'``.
     fitted : ndarray of shape (m,)
         The fit's own estimate (``Linearisation.omega_hat``).
     estimate : {'fit', 'relaxation'}, default='fit'
         ``'fit'``: ``fitted`` (what Section 5.1 certifies). ``'relaxation'``: the pruned
         solution of (10)/(15) on ``problem`` (``fitted`` when it is not solved).
     prune_tol : float, default=0.01
-        :func:`prune_by_contribution` threshold.
+        [`prune_by_contribution`][sk_offwhite.certify.prune_by_contribution] threshold.
     refit : bool, default=False
         Replace the estimate by the least-squares refit on its support.
     normalize_columns : bool, default=False

@@ -1,31 +1,31 @@
 r"""Worst-case parameter errors over the feasible sets FPS (19) and SFPS (20).
 
-On a linear-in-parameters problem :math:`y = \Phi_\theta\theta + \Phi\omega + \eta`,
-:math:`\|\eta\|_2 \le \mu` (:mod:`._relaxation`):
+On a linear-in-parameters problem $y = \Phi_\theta\theta + \Phi\omega + \eta$,
+$\|\eta\|_2 \le \mu$ (`_relaxation`):
 
-.. math::
+$$
+\mathrm{FPS} &= \{(\theta, \omega) : \|y - \Phi_\theta\theta - \Phi\omega\|_2 \le \mu\},
+\\
+\mathrm{SFPS} &= \mathrm{FPS} \cap \{\omega_j = 0,\ j \notin S\},
+$$
 
-    \mathrm{FPS} &= \{(\theta, \omega) : \|y - \Phi_\theta\theta - \Phi\omega\|_2 \le \mu\},
-    \\
-    \mathrm{SFPS} &= \mathrm{FPS} \cap \{\omega_j = 0,\ j \notin S\},
+with $S$ the support of a (certified) sparse estimate $\hat\omega$ (the paper's
+$\mathrm{supp}(\omega) = \mathrm{supp}(\bar\omega)$, closed so that the set is
+convex). So $\mathrm{SFPS} \subseteq \mathrm{FPS}$.
 
-with :math:`S` the support of a (certified) sparse estimate :math:`\hat\omega` (the paper's
-:math:`\mathrm{supp}(\omega) = \mathrm{supp}(\bar\omega)`, closed so that the set is
-convex). So :math:`\mathrm{SFPS} \subseteq \mathrm{FPS}`.
-
-The worst-case errors :math:`e^{\mathrm{FPS}}(\hat\theta) = \sup_{\mathrm{FPS}}
-\|\theta - \hat\theta\|_p` (19) and :math:`e^{\mathrm{SFPS}}` (20) are computed from the
+The worst-case errors $e^{\mathrm{FPS}}(\hat\theta) = \sup_{\mathrm{FPS}}
+\|\theta - \hat\theta\|_p$ (19) and $e^{\mathrm{SFPS}}$ (20) are computed from the
 per-parameter extremes, two second-order cone programs per parameter,
 
-.. math::
+$$
+\theta_i^{\max} = \max_{(\theta,\omega) \in \text{set}} \theta_i, \qquad
+\theta_i^{\min} = \min_{(\theta,\omega) \in \text{set}} \theta_i, \qquad
+e_i = \max(\theta_i^{\max} - \hat\theta_i,\ \hat\theta_i - \theta_i^{\min}).
+$$
 
-    \theta_i^{\max} = \max_{(\theta,\omega) \in \text{set}} \theta_i, \qquad
-    \theta_i^{\min} = \min_{(\theta,\omega) \in \text{set}} \theta_i, \qquad
-    e_i = \max(\theta_i^{\max} - \hat\theta_i,\ \hat\theta_i - \theta_i^{\min}).
-
-:math:`\|e\|_\infty` is exactly (19)/(20) for :math:`p = \infty`; :math:`\|e\|_2` is the
+$\|e\|_\infty$ is exactly (19)/(20) for $p = \infty$; $\|e\|_2$ is the
 error to the farthest corner of the bounding box, an upper bound of (19)/(20) for
-:math:`p = 2`. A set that is unbounded in some :math:`\theta_i` (a dictionary column
+$p = 2$. A set that is unbounded in some $\theta_i$ (a dictionary column
 confounded with the physics, e.g. a term equal to a physical regressor) makes the program
 ``'unbounded'``: the status is reported and no number is given.
 """
@@ -65,9 +65,9 @@ class FeasibleSetBounds:
     theta_hat : ndarray
         The estimate the errors are measured from.
     lower, upper : ndarray or None
-        :math:`\theta^{\min}`, :math:`\theta^{\max}`.
+        $\theta^{\min}$, $\theta^{\max}$.
     worst_case : ndarray or None
-        :math:`e_i = \max(\theta_i^{\max} - \hat\theta_i, \hat\theta_i - \theta_i^{\min})`.
+        $e_i = \max(\theta_i^{\max} - \hat\theta_i, \hat\theta_i - \theta_i^{\min})$.
     support : ndarray of bool or None
         Dictionary columns allowed to be nonzero (``None`` for FPS: all).
     mu : float
@@ -90,12 +90,12 @@ class FeasibleSetBounds:
 
     @property
     def worst_case_norm(self) -> float | None:
-        r""":math:`\|e\|_2` (box bound of (19)/(20) for :math:`p = 2`)."""
+        r"""$\|e\|_2$ (box bound of (19)/(20) for $p = 2$)."""
         return None if self.worst_case is None else float(np.linalg.norm(self.worst_case))
 
     @property
     def worst_case_inf(self) -> float | None:
-        r""":math:`\|e\|_\infty`, exactly (19)/(20) for :math:`p = \infty`."""
+        r"""$\|e\|_\infty$, exactly (19)/(20) for $p = \infty$."""
         return None if self.worst_case is None else float(np.max(self.worst_case, initial=0.0))
 
     def contains(self, theta) -> bool:
@@ -143,7 +143,7 @@ def _extremes(problem: LinearProblem, indices: np.ndarray):
 
 def unbounded_parameters(problem: LinearProblem, indices: np.ndarray, rtol: float = 1e-9):
     r"""Which ``theta[indices]`` the set leaves unbounded: a null direction of
-    :math:`[\Phi_\theta\ \Phi]` (columns scaled to unit norm) that moves them."""
+    $[\Phi_\theta\ \Phi]$ (columns scaled to unit norm) that moves them."""
     scales = 1.0 / column_scales(np.hstack([problem.phi_theta, problem.phi]))
     stacked = np.hstack([problem.phi_theta, problem.phi]) * scales
     _, s, vt = np.linalg.svd(stacked, full_matrices=True)
@@ -182,7 +182,8 @@ def _unbounded_status(problem: LinearProblem, free: np.ndarray) -> str:
 def feasible_set_bounds(
     problem: LinearProblem, theta_hat, *, support=None, parameters=None
 ) -> FeasibleSetBounds:
-    """:func:`feasible_parameter_set` on an already validated :class:`LinearProblem`."""
+    """[`feasible_parameter_set`][sk_offwhite.certify.feasible_parameter_set] on an already
+    validated `LinearProblem`."""
     index = _parameter_indices(problem, parameters)
     theta_hat = np.asarray(theta_hat, dtype=float).reshape(-1)
     if theta_hat.shape != index.shape or not np.all(np.isfinite(theta_hat)):
@@ -218,13 +219,13 @@ def feasible_parameter_set(
     Parameters
     ----------
     phi_theta : array-like of shape (T, n_theta)
-        Physical regressors :math:`\Phi_\theta` (:math:`J_\theta` on a linearisation).
+        Physical regressors $\Phi_\theta$ ($J_\theta$ on a linearisation).
     phi : array-like of shape (T, m)
-        Dictionary :math:`\Phi` (:math:`J_\omega`).
+        Dictionary $\Phi$ ($J_\omega$).
     y : array-like of shape (T,)
         Observations.
     mu : float
-        Noise bound :math:`\mu > 0`.
+        Noise bound $\mu > 0$.
     theta_hat : array-like
         Estimate of the bounded parameters (same length as ``parameters``).
     support : array-like of bool of shape (m,), optional

@@ -1,20 +1,20 @@
 r"""Fig. 2 of Donati et al., the Monte Carlo way: FPS and SFPS as convex hulls of estimates.
 
 Section 5.1 approximates the feasible parameter sets by the convex hulls of the Monte
-Carlo estimates :math:`\hat\theta_i`: FPS from every estimate, SFPS from those whose
-:math:`\hat\omega` passes Theorem 5, shown in the plane of the first two principal
-components of :math:`\theta`. The worst-case error of an estimate over a hull,
+Carlo estimates $\hat\theta_i$: FPS from every estimate, SFPS from those whose
+$\hat\omega$ passes Theorem 5, shown in the plane of the first two principal
+components of $\theta$. The worst-case error of an estimate over a hull,
 
-.. math::
-
-    e(\hat\theta_i) = \max_{\theta \in \mathrm{conv}\{\hat\theta_j\}}
-    \|\theta - \hat\theta_i\|_2 = \max_j \|\hat\theta_j - \hat\theta_i\|_2,
+$$
+e(\hat\theta_i) = \max_{\theta \in \mathrm{conv}\{\hat\theta_j\}}
+\|\theta - \hat\theta_i\|_2 = \max_j \|\hat\theta_j - \hat\theta_i\|_2,
+$$
 
 is attained at a vertex (a convex function on a polytope), so it needs no hull at all;
-:func:`hull_errors` returns its mean and standard deviation over the estimates in the hull,
-the paper's "mean :math:`\pm 1\sigma`". These are statistics of a finite sample: a hull of
-:math:`N` estimates grows with :math:`N`, and the paper's numbers come from 5000 runs.
-The exact sets (19)/(20) of one record are in :mod:`._feasible`.
+[`hull_errors`][sk_offwhite.certify.hull_errors] returns its mean and standard deviation over the
+estimates in the hull, the paper's "mean $\pm 1\sigma$". These are statistics of a finite sample: a
+hull of $N$ estimates grows with $N$, and the paper's numbers come from 5000 runs.
+The exact sets (19)/(20) of one record are in `_feasible`.
 """
 
 from __future__ import annotations
@@ -32,12 +32,12 @@ def _points(points, name: str = "points") -> np.ndarray:
 
 
 def hull_errors(points) -> tuple[float, float]:
-    r"""Mean and standard deviation of :math:`\max_j \|\hat\theta_j - \hat\theta_i\|_2`.
+    r"""Mean and standard deviation of $\max_j \|\hat\theta_j - \hat\theta_i\|_2$.
 
     Parameters
     ----------
     points : array-like of shape (N, d)
-        The estimates spanning the hull (in :math:`\theta` or in principal components).
+        The estimates spanning the hull (in $\theta$ or in principal components).
 
     Returns
     -------
@@ -66,7 +66,7 @@ def principal_components(points, reference=None, n_components: int = 2) -> np.nd
     Returns
     -------
     ndarray of shape (N, n_components)
-        :math:`(\hat\theta_i - \bar\theta_{\rm ref}) V_{:, :k}`, with :math:`V` the right
+        $(\hat\theta_i - \bar\theta_{\rm ref}) V_{:, :k}$, with $V$ the right
         singular vectors of the centred reference (signs fixed: the largest entry of each
         axis is positive).
     """

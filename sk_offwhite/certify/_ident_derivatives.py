@@ -1,19 +1,19 @@
 r"""Derivatives of the multi-step cost at a fitted solution, with JAX.
 
-All functions take the flat vector ``free`` of certified variables :math:`p` and a
-:class:`~sk_offwhite._optim.Problem` (see :mod:`._ident_problem`); the model and the layout
+All functions take the flat vector ``free`` of certified variables $p$ and a
+`Problem` (see `_ident_problem`); the model and the layout
 are static, so each function is compiled once per model structure and data shape.
 
-* :func:`cost_hessian` — :math:`H = \partial^2 C_T / \partial p^2`, forward-over-reverse
-  (``jacfwd`` of ``grad``): :math:`P` forward passes through one reverse pass.
-* :func:`output_jacobian` — the simulated outputs :math:`\hat z` and
-  :math:`J = \partial \hat z / \partial p` in forward mode (Gauss-Newton covariance).
-* :func:`mixed_derivatives` — :math:`G = \partial^2 C_T / \partial \eta\, \partial p` for the
-  three perturbations of Theorem 1: input noise :math:`\eta^u` (the model is simulated with
-  :math:`\tilde u = u + \eta^u`), output noise :math:`\eta^z` (:math:`\tilde z = z + \eta^z`)
-  and a model error :math:`\tilde\Delta_k` added to the state update of the system that
+* `cost_hessian` — $H = \partial^2 C_T / \partial p^2$, forward-over-reverse
+  (``jacfwd`` of ``grad``): $P$ forward passes through one reverse pass.
+* `output_jacobian` — the simulated outputs $\hat z$ and
+  $J = \partial \hat z / \partial p$ in forward mode (Gauss-Newton covariance).
+* `mixed_derivatives` — $G = \partial^2 C_T / \partial \eta\, \partial p$ for the
+  three perturbations of Theorem 1: input noise $\eta^u$ (the model is simulated with
+  $\tilde u = u + \eta^u$), output noise $\eta^z$ ($\tilde z = z + \eta^z$)
+  and a model error $\tilde\Delta_k$ added to the state update of the system that
   produced the data, whose effect on the data is taken to first order along the fitted model,
-  :math:`\tilde z \leftarrow \tilde z + \hat z(p^*; \tilde\Delta) - \hat z(p^*; 0)`.
+  $\tilde z \leftarrow \tilde z + \hat z(p^*; \tilde\Delta) - \hat z(p^*; 0)$.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ def _params(free, problem: Problem, layout: Layout) -> dict:
 
 
 def cost(free, problem: Problem, model: Model, layout: Layout):
-    r""":math:`C_T = \|r\|^2` as a function of the certified variables."""
+    r"""$C_T = \|r\|^2$ as a function of the certified variables."""
     params = _params(free, problem, layout)
     r = residuals(model, params, problem.segments, problem.omega_free, problem.weights)
     return r @ r
@@ -53,7 +53,7 @@ def cost(free, problem: Problem, model: Model, layout: Layout):
 
 @partial(jax.jit, static_argnames=("model", "layout"))
 def cost_hessian(free, problem: Problem, *, model: Model, layout: Layout):
-    r"""Value, gradient and Hessian :math:`\partial^2 C_T/\partial p^2` (forward-over-reverse)."""
+    r"""Value, gradient and Hessian $\partial^2 C_T/\partial p^2$ (forward-over-reverse)."""
     fun = partial(cost, problem=problem, model=model, layout=layout)
     value, gradient = jax.value_and_grad(fun)(free)
     return value, gradient, jax.jacfwd(jax.grad(fun))(free)
@@ -67,13 +67,13 @@ def simulated_outputs(free, problem: Problem, model: Model, layout: Layout):
 
 @partial(jax.jit, static_argnames=("model", "layout"))
 def output_jacobian(free, problem: Problem, *, model: Model, layout: Layout):
-    r"""Outputs :math:`\hat z` and :math:`\partial \hat z/\partial p` (last axis), forward mode."""
+    r"""Outputs $\hat z$ and $\partial \hat z/\partial p$ (last axis), forward mode."""
     fun = partial(simulated_outputs, problem=problem, model=model, layout=layout)
     return linearised(fun, free)
 
 
 def disturbed_outputs(model: Model, params: dict, segments, disturbance):
-    r"""Outputs of :math:`x_{k+1} = f(x_k, u_k) + S\delta(x_k, u_k) + d_k` per segment."""
+    r"""Outputs of $x_{k+1} = f(x_k, u_k) + S\delta(x_k, u_k) + d_k$ per segment."""
     theta = theta_dict(model, params["theta"])
 
     def one(x0, u, d):
@@ -88,7 +88,7 @@ def disturbed_outputs(model: Model, params: dict, segments, disturbance):
 
 
 def perturbed_cost(free, perturbation: Perturbation, solution, problem, model, layout):
-    """:math:`C_T(p; \\eta^u, \\eta^z, \\tilde\\Delta)`; the data move, the model does not."""
+    """$C_T(p; \\eta^u, \\eta^z, \\tilde\\Delta)$; the data move, the model does not."""
     segments = problem.segments
     truth = _params(solution, problem, layout)
     disturbed = disturbed_outputs(model, truth, segments, perturbation.states)
@@ -101,9 +101,9 @@ def perturbed_cost(free, perturbation: Perturbation, solution, problem, model, l
 
 @partial(jax.jit, static_argnames=("model", "layout"))
 def mixed_derivatives(free, problem: Problem, *, model: Model, layout: Layout) -> Perturbation:
-    r""":math:`G = \partial^2 C_T/\partial\eta\,\partial p` at zero perturbation.
+    r"""$G = \partial^2 C_T/\partial\eta\,\partial p$ at zero perturbation.
 
-    Returns a :class:`Perturbation` whose fields have shape ``(n_segments, length, n, P)``.
+    Returns a `Perturbation` whose fields have shape ``(n_segments, length, n, P)``.
     """
     segments = problem.segments
     n_states = _params(free, problem, layout)["x0"].shape[-1]

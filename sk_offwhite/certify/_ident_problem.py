@@ -1,17 +1,17 @@
-r"""A fitted estimator's cost :math:`C_T` as a function of the variables being certified.
+r"""A fitted estimator's cost $C_T$ as a function of the variables being certified.
 
 The certificates of this package (Hessian, covariance, Theorem 1 sensitivities) differentiate
 the same multi-step cost the estimator minimised (eq. 3 of Donati et al.,
-:mod:`sk_offwhite._objective`) at its solution, with respect to the *certified variables*
+`sk_offwhite._objective`) at its solution, with respect to the *certified variables*
 
-.. math::
-
-    p = (\theta_{\text{free}},\ \hat x_0^{\text{free}},\ \Omega_{\text{supp}}),
+$$
+p = (\theta_{\text{free}},\ \hat x_0^{\text{free}},\ \Omega_{\text{supp}}),
+$$
 
 the free physical parameters, the free initial-state entries of every record and, optionally,
 the black-box weights on the fitted support. Weights off the support stay at zero and the
 inner weights of a ridge basis stay at their fitted values. Every record is simulated whole
-from its own initial state (``horizon=None``), whatever horizon the fit used, so :math:`C_T`
+from its own initial state (``horizon=None``), whatever horizon the fit used, so $C_T$
 is the single-shooting cost of the paper.
 """
 
@@ -65,7 +65,8 @@ class LocalProblem(NamedTuple):
 
 
 def check_fitted(estimator) -> None:
-    """Raise a clear error unless ``estimator`` is a fitted :class:`GreyBoxSparseRegressor`."""
+    """Raise a clear error unless ``estimator`` is a fitted
+    [`GreyBoxSparseRegressor`][sk_offwhite.GreyBoxSparseRegressor]."""
     if not isinstance(estimator, GreyBoxSparseRegressor):
         raise TypeError(
             f"estimator must be a fitted GreyBoxSparseRegressor, got {type(estimator).__name__}."
@@ -156,7 +157,7 @@ def local_problem(estimator, u, z, sample_index=None, include_omega: bool = True
         As for ``fit``: a jump starts a new record.
     include_omega : bool, default=True
         Certify the black-box weights on the fitted support jointly with
-        :math:`\\theta` and :math:`\\hat x_0`.
+        $\\theta$ and $\\hat x_0$.
 
     Returns
     -------

@@ -1,41 +1,41 @@
 r"""Local identifiability (Assumption 1 of Donati et al.) and parameter uncertainty of a fit.
 
-At the fitted solution :math:`p^*` of the multi-step cost :math:`C_T` (see
-:mod:`._ident_problem` for the certified variables :math:`p`: free physical parameters,
+At the fitted solution $p^*$ of the multi-step cost $C_T$ (see
+`_ident_problem` for the certified variables $p$: free physical parameters,
 free initial states and, optionally, the black-box weights on the support), the package
 computes the Hessian
 
-.. math::
+$$
+H = \frac{\partial^2 C_T}{\partial p^2}\Big|_{p^*}
+$$
 
-    H = \frac{\partial^2 C_T}{\partial p^2}\Big|_{p^*}
-
-with JAX (forward-over-reverse). Variables of very different magnitudes make :math:`H`
+with JAX (forward-over-reverse). Variables of very different magnitudes make $H$
 ill-conditioned for reasons of units alone, so the verdict uses the *relative* Hessian
-:math:`H_s = D H D`, :math:`D = \operatorname{diag}(|p^*_i|)` (entries at zero keep scale 1),
-the curvature with respect to relative changes :math:`\mathrm{d}p_i/|p_i|`:
+$H_s = D H D$, $D = \operatorname{diag}(|p^*_i|)$ (entries at zero keep scale 1),
+the curvature with respect to relative changes $\mathrm{d}p_i/|p_i|$:
 
-.. math::
+$$
+\text{identifiable} \iff \lambda_{\min}(H_s) > \texttt{rtol}\cdot\lambda_{\max}(H_s).
+$$
 
-    \text{identifiable} \iff \lambda_{\min}(H_s) > \texttt{rtol}\cdot\lambda_{\max}(H_s).
-
-Eigenvectors of :math:`H_s` whose eigenvalue fails the test are the directions along which
+Eigenvectors of $H_s$ whose eigenvalue fails the test are the directions along which
 the cost is flat: they are returned as ``{name: loading}`` in relative units, e.g. for the
-Cascaded Tanks with only :math:`x_2` measured the orbit :math:`x_1 \to a x_1`,
-:math:`(k_1, k_2, k_4) \to (\sqrt a k_1, k_2/\sqrt a, a k_4)` gives
-:math:`(k_1, k_2, k_4, x_1(0)) \propto (\tfrac12, -\tfrac12, 1, 1)`.
+Cascaded Tanks with only $x_2$ measured the orbit $x_1 \to a x_1$,
+$(k_1, k_2, k_4) \to (\sqrt a k_1, k_2/\sqrt a, a k_4)$ gives
+$(k_1, k_2, k_4, x_1(0)) \propto (\tfrac12, -\tfrac12, 1, 1)$.
 
 Uncertainty is the Gauss-Newton covariance of nonlinear least squares,
 
-.. math::
+$$
+\operatorname{Cov}(p) = \hat\sigma^2 (J^\top J)^{-1}, \qquad
+\hat\sigma^2 = \frac{\|\hat z(p^*) - z\|_2^2}{N - P},
+$$
 
-    \operatorname{Cov}(p) = \hat\sigma^2 (J^\top J)^{-1}, \qquad
-    \hat\sigma^2 = \frac{\|\hat z(p^*) - z\|_2^2}{N - P},
-
-with :math:`J = \partial\hat z/\partial p` the Jacobian of the simulated outputs
-(:math:`N` measured values, :math:`P` variables); for a model linear in its parameters this
-is exactly the ordinary-least-squares covariance. When :math:`J^\top J` is singular the
-pseudo-inverse is used, a :class:`UnidentifiableWarning` is issued and the standard errors
-of the variables that load on a null direction are ``inf``.
+with $J = \partial\hat z/\partial p$ the Jacobian of the simulated outputs
+($N$ measured values, $P$ variables); for a model linear in its parameters this
+is exactly the ordinary-least-squares covariance. When $J^\top J$ is singular the
+pseudo-inverse is used, a [`UnidentifiableWarning`][sk_offwhite.certify.UnidentifiableWarning] is
+issued and the standard errors of the variables that load on a null direction are ``inf``.
 """
 
 from __future__ import annotations
@@ -70,30 +70,30 @@ class IdentifiabilityReport:
     kinds : tuple of str
         ``"theta"``, ``"x0"`` or ``"omega"`` for each variable.
     values : ndarray of shape (n_variables,)
-        The fitted values :math:`p^*`.
+        The fitted values $p^*$.
     hessian : ndarray of shape (n_variables, n_variables)
-        :math:`\\partial^2 C_T/\\partial p^2` at :math:`p^*` (in the variables' own units).
+        $\\partial^2 C_T/\\partial p^2$ at $p^*$ (in the variables' own units).
     scales : ndarray of shape (n_variables,)
-        :math:`D`: :math:`|p^*_i|`, or 1 where :math:`p^*_i = 0`.
+        $D$: $|p^*_i|$, or 1 where $p^*_i = 0$.
     eigenvalues, eigenvectors : ndarray
-        Ascending spectrum of the relative Hessian :math:`D H D` (columns are eigenvectors).
+        Ascending spectrum of the relative Hessian $D H D$ (columns are eigenvectors).
     rtol : float
         Relative eigenvalue tolerance of the verdict.
     identifiable : bool
-        :math:`\\lambda_{\\min} > \\texttt{rtol}\\,\\lambda_{\\max}` (Assumption 1, locally).
+        $\\lambda_{\\min} > \\texttt{rtol}\\,\\lambda_{\\max}$ (Assumption 1, locally).
     unidentifiable_directions : tuple of dict
         One ``{name: loading}`` per failing eigenvector, in relative units, unit norm,
         largest loading positive, loadings below ``1e-6`` dropped.
     covariance : ndarray of shape (n_variables, n_variables)
-        Gauss-Newton covariance :math:`\\hat\\sigma^2 (J^\\top J)^{+}`.
+        Gauss-Newton covariance $\\hat\\sigma^2 (J^\\top J)^{+}$.
     standard_errors : dict
         ``name -> sqrt(covariance[i, i])``, ``inf`` on unidentifiable variables.
     noise_variance : float
-        :math:`\\hat\\sigma^2` from the residual (``nan`` when :math:`N \\le P`).
+        $\\hat\\sigma^2$ from the residual (``nan`` when $N \\le P$).
     n_observations : int
-        :math:`N`, measured output values in the cost.
+        $N$, measured output values in the cost.
     cost, gradient_norm : float
-        :math:`C_T(p^*)` and :math:`\\|\\nabla C_T(p^*)\\|_2` (near 0 at a minimum).
+        $C_T(p^*)$ and $\\|\\nabla C_T(p^*)\\|_2$ (near 0 at a minimum).
     """
 
     names: tuple[str, ...]
@@ -115,7 +115,7 @@ class IdentifiabilityReport:
 
     @property
     def verdict(self) -> str:
-        """One line: is :math:`H \\succ 0` at the solution."""
+        """One line: is $H \\succ 0$ at the solution."""
         if self.identifiable:
             return "locally identifiable: H is positive definite at the solution"
         count = len(self.unidentifiable_directions)
@@ -123,7 +123,7 @@ class IdentifiabilityReport:
 
     @property
     def condition_number(self) -> float:
-        """:math:`\\lambda_{\\max}/\\lambda_{\\min}` of the relative Hessian (inf if singular)."""
+        """$\\lambda_{\\max}/\\lambda_{\\min}$ of the relative Hessian (inf if singular)."""
         smallest = self.eigenvalues[0]
         return float(self.eigenvalues[-1] / smallest) if smallest > 0 else np.inf
 
@@ -155,13 +155,13 @@ def _direction_lines(directions) -> list[str]:
 
 
 def variable_scales(values: np.ndarray) -> np.ndarray:
-    """:math:`|p_i|`, with 1 where :math:`p_i = 0` (relative units for the verdict)."""
+    """$|p_i|$, with 1 where $p_i = 0$ (relative units for the verdict)."""
     scales = np.abs(np.asarray(values, float))
     return np.where(scales > 0, scales, 1.0)
 
 
 def relative_spectrum(matrix: np.ndarray, scales: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Ascending eigenvalues and eigenvectors of :math:`D M D` (symmetrised)."""
+    """Ascending eigenvalues and eigenvectors of $D M D$ (symmetrised)."""
     scaled = matrix * np.outer(scales, scales)
     return np.linalg.eigh(0.5 * (scaled + scaled.T))
 
@@ -181,10 +181,10 @@ def direction_loadings(vector: np.ndarray, names) -> dict[str, float]:
 
 
 def relative_inverse(matrix, scales, rtol) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    r"""Pseudo-inverse of ``matrix`` computed in relative units, :math:`D (D M D)^{+} D`.
+    r"""Pseudo-inverse of ``matrix`` computed in relative units, $D (D M D)^{+} D$.
 
-    Eigenvalues of :math:`DMD` at or below ``rtol`` times the largest are dropped. Returns
-    the inverse, the indices of the dropped eigenvalues and the eigenvectors of :math:`DMD`.
+    Eigenvalues of $DMD$ at or below ``rtol`` times the largest are dropped. Returns
+    the inverse, the indices of the dropped eigenvalues and the eigenvectors of $DMD$.
     """
     eigenvalues, eigenvectors = relative_spectrum(matrix, scales)
     flat = flat_indices(eigenvalues, rtol)
@@ -194,16 +194,16 @@ def relative_inverse(matrix, scales, rtol) -> tuple[np.ndarray, np.ndarray, np.n
 
 
 def _noise_variance(residual: np.ndarray, n_variables: int) -> float:
-    """:math:`\\|e\\|^2 / (N - P)`, ``nan`` without degrees of freedom."""
+    """$\\|e\\|^2 / (N - P)$, ``nan`` without degrees of freedom."""
     dof = residual.size - n_variables
     return float(residual @ residual / dof) if dof > 0 else np.nan
 
 
 def gauss_newton_covariance(jacobian, residual, scales, rtol):
-    r"""Covariance :math:`\hat\sigma^2 (J^\top J)^{+}`, computed in relative units.
+    r"""Covariance $\hat\sigma^2 (J^\top J)^{+}$, computed in relative units.
 
-    Returns the covariance, :math:`\hat\sigma^2` and the indices of the variables that load
-    on a null direction of :math:`J^\top J` (empty when it is regular).
+    Returns the covariance, $\hat\sigma^2$ and the indices of the variables that load
+    on a null direction of $J^\top J$ (empty when it is regular).
     """
     inverse, flat, eigenvectors = relative_inverse(jacobian.T @ jacobian, scales, rtol)
     sigma2 = _noise_variance(residual, scales.size)
@@ -213,7 +213,7 @@ def gauss_newton_covariance(jacobian, residual, scales, rtol):
 
 
 def fit_residual_and_jacobian(local: LocalProblem) -> tuple[np.ndarray, np.ndarray]:
-    """Residual :math:`\\hat z - z` and :math:`J` over the measured (unpadded) samples."""
+    """Residual $\\hat z - z$ and $J$ over the measured (unpadded) samples."""
     static = dict(model=local.model, layout=local.layout)
     outputs, jacobian = output_jacobian(local.values, local.problem, **static)
     segments = local.problem.segments
@@ -223,7 +223,7 @@ def fit_residual_and_jacobian(local: LocalProblem) -> tuple[np.ndarray, np.ndarr
 
 
 def hessian_at_solution(local: LocalProblem) -> tuple[float, np.ndarray, np.ndarray]:
-    """:math:`C_T`, its gradient and its Hessian at the fitted values (numpy)."""
+    """$C_T$, its gradient and its Hessian at the fitted values (numpy)."""
     value, gradient, hessian = cost_hessian(
         local.values, local.problem, model=local.model, layout=local.layout
     )
@@ -267,10 +267,10 @@ def identifiability(
     sample_index : array-like of shape (n_samples,), default=None
         As for ``fit``: a jump in the index starts a new record.
     include_omega : bool, default=True
-        Treat the black-box weights on the fitted support as variables of :math:`H`
-        (they are fitted jointly with :math:`\theta`); ``False`` keeps them fixed.
+        Treat the black-box weights on the fitted support as variables of $H$
+        (they are fitted jointly with $\theta$); ``False`` keeps them fixed.
     rtol : float, default=1e-9
-        Relative eigenvalue tolerance: :math:`H` counts as positive definite when every
+        Relative eigenvalue tolerance: $H$ counts as positive definite when every
         eigenvalue of the relative Hessian exceeds ``rtol`` times the largest.
 
     Returns
@@ -282,7 +282,7 @@ def identifiability(
     Warns
     -----
     UnidentifiableWarning
-        When :math:`H` or :math:`J^\top J` is singular.
+        When $H$ or $J^\top J$ is singular.
     """
     if not rtol > 0:
         raise ValueError(f"rtol must be positive, got {rtol!r}.")

@@ -1,27 +1,27 @@
 r"""Local linearisation of a fitted multi-step model, and Theorems 4-5, (15), FPS/SFPS on it.
 
-Around the fit :math:`(\hat\theta, \hat\omega)` the simulated outputs (the whole record,
+Around the fit $(\hat\theta, \hat\omega)$ the simulated outputs (the whole record,
 from the fitted initial state) are, to first order,
 
-.. math::
+$$
+\hat z(\theta, \omega) \approx \hat z + J_\theta(\theta - \hat\theta)
++ J_\omega(\omega - \hat\omega),
+$$
 
-    \hat z(\theta, \omega) \approx \hat z + J_\theta(\theta - \hat\theta)
-    + J_\omega(\omega - \hat\omega),
-
-with :math:`J_\theta = \partial\hat z/\partial\theta` and :math:`J_\omega =
-\partial\hat z/\partial\omega` from JAX (forward mode through the ``lax.scan`` rollout, in
+with $J_\theta = \partial\hat z/\partial\theta$ and $J_\omega =
+\partial\hat z/\partial\omega$ from JAX (forward mode through the ``lax.scan`` rollout, in
 float64). The free initial state is a nuisance parameter: its columns join
-:math:`J_\theta`. Then :math:`z \approx J_\theta\theta + J_\omega\omega + \eta` with the
+$J_\theta$. Then $z \approx J_\theta\theta + J_\omega\omega + \eta$ with the
 shifted residual
 
-.. math::
-
-    \tilde z_\ell = z - \hat z + J_\theta\hat\theta + J_\omega\hat\omega
+$$
+\tilde z_\ell = z - \hat z + J_\theta\hat\theta + J_\omega\hat\omega
+$$
 
 (the paper's Theorem 4 prints minus signs on the last two terms; the plus signs follow
-from its own linearisation). This is the linear problem of :mod:`._relaxation` with
-:math:`\Phi_\theta = J_\theta`, :math:`\Phi = J_\omega`, :math:`y = \tilde z_\ell`, so the
-relaxation (15), the certificate of Theorem 5 (:math:`\Upsilon_\ell = \Upsilon(J_\theta)`)
+from its own linearisation). This is the linear problem of `_relaxation` with
+$\Phi_\theta = J_\theta$, $\Phi = J_\omega$, $y = \tilde z_\ell$, so the
+relaxation (15), the certificate of Theorem 5 ($\Upsilon_\ell = \Upsilon(J_\theta)$)
 and FPS/SFPS hold *locally*, as far as the linearisation does.
 """
 
@@ -58,15 +58,15 @@ class Linearisation:
     Attributes
     ----------
     jac_theta : ndarray of shape (T * n_outputs, n_free)
-        :math:`J_\theta`: free physical parameters first, then free initial states.
+        $J_\theta$: free physical parameters first, then free initial states.
     jac_omega : ndarray of shape (T * n_outputs, n_omega)
-        :math:`J_\omega` for every trainable entry of :math:`\Omega`.
+        $J_\omega$ for every trainable entry of $\Omega$.
     y : ndarray of shape (T * n_outputs,)
-        Shifted residual :math:`\tilde z_\ell`.
+        Shifted residual $\tilde z_\ell$.
     theta_hat, omega_hat : ndarray
         The fit (``omega_hat`` = the thresholded ``coef_`` entries).
     residual : ndarray of shape (T * n_outputs,)
-        :math:`z - \hat z` at the fit.
+        $z - \hat z$ at the fit.
     theta_names, feature_names : tuple of str
     n_physical : int
         Number of physical parameters among the columns of ``jac_theta``.
@@ -83,7 +83,7 @@ class Linearisation:
     n_physical: int
 
     def problem(self, mu: float) -> LinearProblem:
-        r"""The local problem :math:`\tilde z_\ell = J_\theta\theta + J_\omega\omega + \eta`."""
+        r"""The local problem $\tilde z_\ell = J_\theta\theta + J_\omega\omega + \eta$."""
         return linear_problem(
             self.jac_theta,
             self.jac_omega,
@@ -95,7 +95,7 @@ class Linearisation:
 
 
 def _omega_mask(estimator) -> np.ndarray:
-    """Trainable entries of :math:`\\Omega` (all when the compiled basis is not at hand)."""
+    """Trainable entries of $\\Omega$ (all when the compiled basis is not at hand)."""
     compiled = getattr(estimator, "_compiled", None)
     mask = getattr(compiled[0], "omega_trainable", None) if compiled else None
     shape = estimator.coef_.shape
@@ -153,7 +153,7 @@ def _jacobians(estimator, u, x0, masks):
 
 
 def linearise_estimator(estimator, u, z, *, x0=None) -> Linearisation:
-    r"""Jacobians :math:`J_\theta`, :math:`J_\omega` and the shifted residual of a fitted model.
+    r"""Jacobians $J_\theta$, $J_\omega$ and the shifted residual of a fitted model.
 
     Parameters
     ----------
@@ -171,7 +171,7 @@ def linearise_estimator(estimator, u, z, *, x0=None) -> Linearisation:
     Linearisation
         The columns of ``jac_theta`` are the free physical parameters, then the free
         initial-state entries (``x0[name]``); those of ``jac_omega`` the trainable
-        entries of :math:`\Omega`.
+        entries of $\Omega$.
     """
     check_is_fitted(estimator)
     if estimator.coef_.size == 0:
@@ -187,7 +187,8 @@ def linearise_estimator(estimator, u, z, *, x0=None) -> Linearisation:
 
 
 def _assemble(estimator, z, z_hat, jacobians, x0, masks) -> Linearisation:
-    """The :class:`Linearisation` from the Jacobian blocks at the fit."""
+    """The [`Linearisation`][sk_offwhite.certify.Linearisation] from the Jacobian blocks at the
+    fit."""
     theta_free, x0_free, omega_mask = masks
     j_theta, j_x0, j_omega = jacobians
     theta_hat = np.concatenate([estimator.theta_[theta_free], np.asarray(x0)[x0_free]])
@@ -228,12 +229,12 @@ def multistep_relaxation(
 ) -> SparseRelaxation:
     r"""The multi-step relaxation (15), solved on the local linearisation of the fit.
 
-    .. math::
+    $$
+    \min_{\theta, \omega} \|\omega\|_1 \quad \text{s.t.} \quad
+    \|\tilde z_\ell - J_\theta\theta - J_\omega\omega\|_2 \le \mu,
+    $$
 
-        \min_{\theta, \omega} \|\omega\|_1 \quad \text{s.t.} \quad
-        \|\tilde z_\ell - J_\theta\theta - J_\omega\omega\|_2 \le \mu,
-
-    the first-order form of :math:`\|z - \hat z(\theta, \omega)\|_2 \le \mu` around the fit
+    the first-order form of $\|z - \hat z(\theta, \omega)\|_2 \le \mu$ around the fit
     (``theta`` includes the free initial states).
 
     Parameters
@@ -241,23 +242,23 @@ def multistep_relaxation(
     estimator : GreyBoxSparseRegressor
         Fitted, with a dictionary.
     u, z : array-like
-        The record (see :func:`linearise_estimator`).
+        The record (see [`linearise_estimator`][sk_offwhite.certify.linearise_estimator]).
     mu : float
         Bound on the 2-norm of the output noise over the record; with a per-sample bound
-        :math:`|\eta_k| \le b` use :math:`\mu = b\sqrt{T n_z}`.
+        $|\eta_k| \le b$ use $\mu = b\sqrt{T n_z}$.
     support_tol : float, default=1e-6
-        See :func:`~sk_offwhite.certify.sparse_relaxation`.
+        See [`sparse_relaxation`][sk_offwhite.certify.sparse_relaxation].
     normalize_columns : bool, default=False
-        Weigh each :math:`|\omega_j|` by the norm of its column of :math:`J_\omega` (see
-        :func:`~sk_offwhite.certify.sparse_relaxation`).
+        Weigh each $|\omega_j|$ by the norm of its column of $J_\omega$ (see
+        [`sparse_relaxation`][sk_offwhite.certify.sparse_relaxation]).
     prune : bool, default=True
-        Make the support exact (see :func:`~sk_offwhite.certify.sparse_relaxation`): the
-        candidate terms, in ascending order of :math:`\|J_{\omega,j}\hat\omega_j\|_2`,
-        are removed from :math:`S` while the least-squares refit
-        :math:`\min_{\theta, \omega_{S \setminus j}} \|\tilde z_\ell - J_\theta\theta -
-        J_{\omega, S \setminus j}\,\omega_{S \setminus j}\|_2 \le \mu` stays feasible,
+        Make the support exact (see [`sparse_relaxation`][sk_offwhite.certify.sparse_relaxation]):
+        the candidate terms, in ascending order of $\|J_{\omega,j}\hat\omega_j\|_2$,
+        are removed from $S$ while the least-squares refit
+        $\min_{\theta, \omega_{S \setminus j}} \|\tilde z_\ell - J_\theta\theta -
+        J_{\omega, S \setminus j}\,\omega_{S \setminus j}\|_2 \le \mu$ stays feasible,
         and the estimate returned is that refit on the final support (exact zeros
-        elsewhere). ``False`` returns the thresholded :math:`\ell_1` solution.
+        elsewhere). ``False`` returns the thresholded $\ell_1$ solution.
     linearisation : Linearisation, optional
         Reuse a linearisation computed before (``u`` and ``z`` are then ignored).
 
@@ -286,10 +287,10 @@ def certify_estimator(
 ) -> SparsityCertificate:
     r"""Theorem 5: is the fitted correction locally maximally sparse?
 
-    Runs :func:`~sk_offwhite.certify.certify_sparsity` on the local linearisation
-    (:math:`\Phi_\theta = J_\theta`, :math:`\Phi = J_\omega`, :math:`y = \tilde z_\ell`)
-    for the multi-step fit's own :math:`\hat\omega` (Section 5.1; Remark 1 allows any
-    estimate), with its terms of contribution :math:`\|J_{\omega,j}\hat\omega_j\|_2`
+    Runs [`certify_sparsity`][sk_offwhite.certify.certify_sparsity] on the local linearisation
+    ($\Phi_\theta = J_\theta$, $\Phi = J_\omega$, $y = \tilde z_\ell$)
+    for the multi-step fit's own $\hat\omega$ (Section 5.1; Remark 1 allows any
+    estimate), with its terms of contribution $\|J_{\omega,j}\hat\omega_j\|_2$
     below ``prune_tol`` of the largest set to zero.
 
     Parameters
@@ -297,15 +298,15 @@ def certify_estimator(
     estimator : GreyBoxSparseRegressor
         Fitted, with a dictionary.
     u, z : array-like
-        The record (see :func:`linearise_estimator`).
+        The record (see [`linearise_estimator`][sk_offwhite.certify.linearise_estimator]).
     mu : float or ``'refined'``
         Bound on the 2-norm of the output noise over the record (see
-        :func:`multistep_relaxation`). ``'refined'``: ``mu_factor`` times the residual the
-        estimate leaves on the linearisation, :math:`\min_\theta \|\tilde z_\ell -
-        J_\theta\theta - J_\omega\hat\omega\|_2` (the smallest bound under which it is
-        feasible).
+        [`multistep_relaxation`][sk_offwhite.certify.multistep_relaxation]). ``'refined'``:
+        ``mu_factor`` times the residual the estimate leaves on the linearisation, $\min_\theta
+        \|\tilde z_\ell - J_\theta\theta - J_\omega\hat\omega\|_2$ (the smallest bound under which
+        it is feasible).
     omega_hat : array-like, optional
-        An explicit estimate, one entry per trainable :math:`\Omega` entry, certified as
+        An explicit estimate, one entry per trainable $\Omega$ entry, certified as
         given (no pruning, no refit): e.g. ``multistep_relaxation(...).omega``.
     estimate : {'fit', 'relaxation'}, default='fit'
         Without ``omega_hat``: ``'fit'`` certifies the fit's ``coef_`` (the default, as
@@ -322,8 +323,8 @@ def certify_estimator(
     **options
         ``max_subsets``, ``active_rtol``, ``normalize_columns``, ``diagnose``, ``level``,
         ``vertex``
-        of :func:`~sk_offwhite.certify.certify_sparsity` (``level='vertex'``, the default:
-        :math:`\sigma^2_n` at :math:`n = \min(\|\omega^v\|_0 + M, m')`; ``'2M'``: the
+        of [`certify_sparsity`][sk_offwhite.certify.certify_sparsity] (``level='vertex'``, the
+        default: $\sigma^2_n$ at $n = \min(\|\omega^v\|_0 + M, m')$; ``'2M'``: the
         paper's literal level; ``vertex='search'``, the default: where the test fails at
         (11)'s solution, also at a searched vertex; ``'l1'``: the paper's vertex only).
 
@@ -360,7 +361,7 @@ def estimator_feasible_set(
     estimator : GreyBoxSparseRegressor
         Fitted, with a dictionary.
     u, z : array-like
-        The record (see :func:`linearise_estimator`).
+        The record (see [`linearise_estimator`][sk_offwhite.certify.linearise_estimator]).
     mu : float
         Bound on the 2-norm of the output noise over the record.
     support : ``'fit'`` or array-like of bool, optional

@@ -2,36 +2,36 @@ r"""The convex sparse relaxation (10) of Donati et al. and the linear problem it
 
 A *linear-in-parameters* problem is the data model
 
-.. math::
+$$
+y = \Phi_\theta\, \theta + \Phi\, \omega + \eta, \qquad \|\eta\|_2 \le \mu,
+$$
 
-    y = \Phi_\theta\, \theta + \Phi\, \omega + \eta, \qquad \|\eta\|_2 \le \mu,
+with $\Phi_\theta \in \mathbb{R}^{T \times n_\theta}$ the physical regressors (the
+matrix $\Xi$ of eq. 7), $\Phi \in \mathbb{R}^{T \times m}$ the dictionary and
+$\mu$ a bound on the noise norm (Assumption 2). The relaxation (10) is
 
-with :math:`\Phi_\theta \in \mathbb{R}^{T \times n_\theta}` the physical regressors (the
-matrix :math:`\Xi` of eq. 7), :math:`\Phi \in \mathbb{R}^{T \times m}` the dictionary and
-:math:`\mu` a bound on the noise norm (Assumption 2). The relaxation (10) is
+$$
+(\hat\theta, \hat\omega) = \arg\min_{\theta, \omega} \|\omega\|_1
+\quad \text{s.t.} \quad \|y - \Phi_\theta \theta - \Phi \omega\|_2 \le \mu,
+$$
 
-.. math::
-
-    (\hat\theta, \hat\omega) = \arg\min_{\theta, \omega} \|\omega\|_1
-    \quad \text{s.t.} \quad \|y - \Phi_\theta \theta - \Phi \omega\|_2 \le \mu,
-
-with :math:`\theta` free (unpenalised). The same problem on the local linearisation of a
-multi-step fit (``y`` the shifted residual, :math:`\Phi_\theta = J_\theta`,
-:math:`\Phi = J_\omega`, see :mod:`._linearise`) is the local form of the multi-step
+with $\theta$ free (unpenalised). The same problem on the local linearisation of a
+multi-step fit (``y`` the shifted residual, $\Phi_\theta = J_\theta$,
+$\Phi = J_\omega$, see `_linearise`) is the local form of the multi-step
 relaxation (15).
 
-Numerics: the :math:`T`-row constraint is compressed exactly with a thin QR factorisation
-:math:`[\Phi_\theta\ \Phi] = QR`,
-:math:`\|y - Ax\|_2 = \|[Q^\top y - Rx;\ \|y - QQ^\top y\|_2]\|_2`, so every cone has
-:math:`n_\theta + m + 1` entries whatever :math:`T`; the dictionary columns are rescaled to
-unit norm inside the solver (the objective keeps the original :math:`\|\omega\|_1`).
+Numerics: the $T$-row constraint is compressed exactly with a thin QR factorisation
+$[\Phi_\theta\ \Phi] = QR$,
+$\|y - Ax\|_2 = \|[Q^\top y - Rx;\ \|y - QQ^\top y\|_2]\|_2$, so every cone has
+$n_\theta + m + 1$ entries whatever $T$; the dictionary columns are rescaled to
+unit norm inside the solver (the objective keeps the original $\|\omega\|_1$).
 
 Support: the interior-point solution is never exactly sparse. Terms whose contribution
-:math:`\|\varphi_j\hat\omega_j\|_2` is negligible against the largest one or against
-:math:`\mu` are set to 0 (:func:`support_of`); by default the remaining ones are then
-pruned by backward elimination against the data constraint (:func:`prune_support`) and
-the estimate is the least-squares refit on the final support (:func:`least_squares_refit`),
-so the support is exact and every term in it is needed to fit within :math:`\mu`.
+$\|\varphi_j\hat\omega_j\|_2$ is negligible against the largest one or against
+$\mu$ are set to 0 (`support_of`); by default the remaining ones are then
+pruned by backward elimination against the data constraint (`prune_support`) and
+the estimate is the least-squares refit on the final support (`least_squares_refit`),
+so the support is exact and every term in it is needed to fit within $\mu$.
 """
 
 from __future__ import annotations
@@ -55,8 +55,8 @@ SOLVER = "CLARABEL"
 
 @dataclass(frozen=True)
 class LinearProblem:
-    r"""Validated data of :math:`y = \Phi_\theta \theta + \Phi \omega + \eta`,
-    :math:`\|\eta\|_2 \le \mu`.
+    r"""Validated data of $y = \Phi_\theta \theta + \Phi \omega + \eta$,
+    $\|\eta\|_2 \le \mu$.
 
     Attributes
     ----------
@@ -113,13 +113,13 @@ def linear_problem(
     Parameters
     ----------
     phi_theta : array-like of shape (T, n_theta)
-        Physical regressors :math:`\Phi_\theta` (``n_theta`` may be 0).
+        Physical regressors $\Phi_\theta$ (``n_theta`` may be 0).
     phi : array-like of shape (T, m)
-        Dictionary :math:`\Phi`.
+        Dictionary $\Phi$.
     y : array-like of shape (T,)
         Observations.
     mu : float
-        Noise bound :math:`\mu > 0` on :math:`\|\eta\|_2`.
+        Noise bound $\mu > 0$ on $\|\eta\|_2$.
     theta_names, feature_names : sequence of str, optional
         Names used in summaries (default ``theta0, ...`` and ``phi0, ...``).
 
@@ -130,7 +130,7 @@ def linear_problem(
     Raises
     ------
     ValueError
-        On a wrong shape, NaN/inf, or :math:`\mu \le 0`.
+        On a wrong shape, NaN/inf, or $\mu \le 0$.
     """
     y = np.asarray(y, dtype=float).reshape(-1)
     if not np.all(np.isfinite(y)):
@@ -156,12 +156,12 @@ def column_scales(matrix: np.ndarray) -> np.ndarray:
 
 
 def unit_norm_problem(problem: LinearProblem) -> tuple[LinearProblem, np.ndarray]:
-    r"""The problem in unit-norm dictionary columns, and the column norms :math:`d`.
+    r"""The problem in unit-norm dictionary columns, and the column norms $d$.
 
-    With :math:`D = \mathrm{diag}(d)`, :math:`d_j = \|\varphi_j\|_2` and
-    :math:`\omega' = D\omega`, :math:`\Phi\omega = (\Phi D^{-1})\omega'`: the data model
-    and every support are unchanged, and :math:`\|\omega'\|_1 = \sum_j
-    \|\varphi_j\|_2\, |\omega_j|` weighs each term by the size of its regressor, so
+    With $D = \mathrm{diag}(d)$, $d_j = \|\varphi_j\|_2$ and
+    $\omega' = D\omega$, $\Phi\omega = (\Phi D^{-1})\omega'$: the data model
+    and every support are unchanged, and $\|\omega'\|_1 = \sum_j
+    \|\varphi_j\|_2\, |\omega_j|$ weighs each term by the size of its regressor, so
     the relaxation no longer depends on the units of the dictionary.
     """
     scales = column_scales(problem.phi)
@@ -169,10 +169,10 @@ def unit_norm_problem(problem: LinearProblem) -> tuple[LinearProblem, np.ndarray
 
 
 def compress(matrix: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    r"""``(R, c, r_perp)`` with :math:`\|y - Ax\|_2^2 = \|c - Rx\|_2^2 + r_\perp^2` for all x.
+    r"""``(R, c, r_perp)`` with $\|y - Ax\|_2^2 = \|c - Rx\|_2^2 + r_\perp^2$ for all x.
 
-    From the thin QR factorisation :math:`A = QR`: :math:`c = Q^\top y` and
-    :math:`r_\perp = \|y - Qc\|_2`. Exact for any ``A`` (rank-deficient included).
+    From the thin QR factorisation $A = QR$: $c = Q^\top y$ and
+    $r_\perp = \|y - Qc\|_2$. Exact for any ``A`` (rank-deficient included).
     """
     if matrix.shape[1] == 0:
         return np.zeros((0, 0)), np.zeros(0), float(np.linalg.norm(y))
@@ -187,13 +187,13 @@ def _unit_scales(problem: LinearProblem) -> tuple[np.ndarray, np.ndarray]:
 
 
 def feasible_region(problem: LinearProblem):
-    r"""Expressions ``theta``, ``omega`` and the cone of :math:`\|y - A x\|_2 \le \mu`.
+    r"""Expressions ``theta``, ``omega`` and the cone of $\|y - A x\|_2 \le \mu$.
 
-    Written for accuracy relative to :math:`\mu` (a noise-free record can have
-    :math:`\mu \ll \|y\|`): with unit-norm columns :math:`A = [\Phi_\theta\ \Phi] D`, its
-    compressed form ``(R, c, r_perp)`` (:func:`compress`) and the least-squares solution
-    :math:`x_{LS}`, the variables are :math:`x = x_{LS} + \mu d` and the cone reads
-    :math:`\|[(c - Rx_{LS})/\mu - Rd;\ r_\perp/\mu]\|_2 \le 1`: every entry is of order
+    Written for accuracy relative to $\mu$ (a noise-free record can have
+    $\mu \ll \|y\|$): with unit-norm columns $A = [\Phi_\theta\ \Phi] D$, its
+    compressed form ``(R, c, r_perp)`` (`compress`) and the least-squares solution
+    $x_{LS}$, the variables are $x = x_{LS} + \mu d$ and the cone reads
+    $\|[(c - Rx_{LS})/\mu - Rd;\ r_\perp/\mu]\|_2 \le 1$: every entry is of order
     one. ``theta`` (``omega``) is ``None`` when there is no such column.
     """
     s_theta, s_omega = _unit_scales(problem)
@@ -221,40 +221,40 @@ def solve_status(prob: cp.Problem) -> str:
 
 
 def contributions(problem: LinearProblem, omega: np.ndarray) -> np.ndarray:
-    r"""Size of every term in the data: :math:`c_j = \|\varphi_j\omega_j\|_2 =
-    |\omega_j|\,\|\varphi_j\|_2` (in the units of :math:`y`, whatever those of
-    :math:`\omega_j`)."""
+    r"""Size of every term in the data: $c_j = \|\varphi_j\omega_j\|_2 =
+    |\omega_j|\,\|\varphi_j\|_2$ (in the units of $y$, whatever those of
+    $\omega_j$)."""
     return np.abs(omega) * np.linalg.norm(problem.phi, axis=0)
 
 
 def support_of(contribution: np.ndarray, mu: float, tol: float) -> np.ndarray:
-    r"""Terms whose contribution is not negligible: :math:`c_j > \text{tol}\,
-    \max(\max_k c_k,\ \mu)`.
+    r"""Terms whose contribution is not negligible: $c_j > \text{tol}\,
+    \max(\max_k c_k,\ \mu)$.
 
     Interior-point solutions are never exactly sparse. The threshold is relative twice
     over, never an absolute coefficient size: to the largest term (round-off of the
-    solver) and to the noise bound :math:`\mu` (a term that moves the residual by less
-    than ``tol`` :math:`\mu` is below anything the data can tell). The second makes an
-    all-zero optimum (:math:`\hat\omega = 0` up to the solver's :math:`10^{-10}`) give
+    solver) and to the noise bound $\mu$ (a term that moves the residual by less
+    than ``tol`` $\mu$ is below anything the data can tell). The second makes an
+    all-zero optimum ($\hat\omega = 0$ up to the solver's $10^{-10}$) give
     an empty support, which a threshold relative to the largest entry alone cannot.
     """
     return contribution > tol * max(np.max(contribution, initial=0.0), mu)
 
 
 def residual_norm(problem: LinearProblem, theta: np.ndarray, omega: np.ndarray) -> float:
-    r""":math:`\|y - \Phi_\theta\theta - \Phi\omega\|_2`."""
+    r"""$\|y - \Phi_\theta\theta - \Phi\omega\|_2$."""
     return float(np.linalg.norm(problem.y - problem.phi_theta @ theta - problem.phi @ omega))
 
 
 def least_squares_refit(
     problem: LinearProblem, support: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray, float]:
-    r"""The debiased estimate on a support: :math:`(\theta, \omega)` and its residual norm.
+    r"""The debiased estimate on a support: $(\theta, \omega)$ and its residual norm.
 
-    .. math::
-
-        (\theta, \omega_S) = \arg\min \|y - \Phi_\theta\theta - \Phi_S\omega_S\|_2,
-        \qquad \omega_{S^c} = 0,
+    $$
+    (\theta, \omega_S) = \arg\min \|y - \Phi_\theta\theta - \Phi_S\omega_S\|_2,
+    \qquad \omega_{S^c} = 0,
+    $$
 
     solved on unit-norm columns (minimum-norm solution when they are dependent, the
     residual is the least one either way).
@@ -273,9 +273,9 @@ def prune_support(
     r"""Backward elimination: drop every term the data constraint does not need.
 
     The terms of ``support`` are visited once, in ascending order of ``contribution``;
-    term :math:`j` is removed when the least-squares refit without it is still feasible,
-    :math:`\min_{\theta, \omega_{S \setminus j}} \|y - \Phi_\theta\theta -
-    \Phi_{S \setminus j}\omega_{S \setminus j}\|_2 \le \mu`. A term kept at its
+    term $j$ is removed when the least-squares refit without it is still feasible,
+    $\min_{\theta, \omega_{S \setminus j}} \|y - \Phi_\theta\theta -
+    \Phi_{S \setminus j}\omega_{S \setminus j}\|_2 \le \mu$. A term kept at its
     visit stays needed at the end (the refit residual only grows as the support
     shrinks), so no single term of the result can be removed.
     """
@@ -298,22 +298,22 @@ class SparseRelaxation:
     status : str
         cvxpy status (``'optimal'`` is the only one whose numbers are a solution).
     theta, omega : ndarray or None
-        :math:`\hat\theta`, :math:`\hat\omega` (``None`` unless the solve is optimal);
+        $\hat\theta$, $\hat\omega$ (``None`` unless the solve is optimal);
         ``omega`` is exactly 0 off the support. With ``pruned`` they are the
-        least-squares refit on the support, otherwise the :math:`\ell_1` solution.
+        least-squares refit on the support, otherwise the $\ell_1$ solution.
     support : ndarray of bool or None
-        :math:`\mathrm{supp}(\hat\omega)`.
+        $\mathrm{supp}(\hat\omega)$.
     residual_norm : float or None
-        :math:`\|y - \Phi_\theta\hat\theta - \Phi\hat\omega\|_2` for the returned
+        $\|y - \Phi_\theta\hat\theta - \Phi\hat\omega\|_2$ for the returned
         ``theta`` and ``omega``.
     mu : float
     theta_names, feature_names : tuple of str
     normalize_columns : bool
-        Whether the objective was :math:`\sum_j \|\varphi_j\|_2 |\omega_j|` (``omega``
+        Whether the objective was $\sum_j \|\varphi_j\|_2 |\omega_j|$ (``omega``
         is in the dictionary's own units either way).
     pruned : bool
         Whether the support was pruned and the estimate refitted by least squares
-        (``prune=True`` of :func:`sparse_relaxation`).
+        (``prune=True`` of [`sparse_relaxation`][sk_offwhite.certify.sparse_relaxation]).
     """
 
     status: str
@@ -364,9 +364,9 @@ class SparseRelaxation:
 
 
 def _estimate(problem, theta, omega, tol, prune):
-    r"""``(theta, omega, support)`` from the solver's :math:`\ell_1` solution: thresholded
-    (:func:`support_of`), or pruned and refitted (:func:`prune_support`,
-    :func:`least_squares_refit`)."""
+    r"""``(theta, omega, support)`` from the solver's $\ell_1$ solution: thresholded
+    (`support_of`), or pruned and refitted (`prune_support`,
+    `least_squares_refit`)."""
     theta_l1 = np.asarray(theta.value, float) if problem.n_theta else np.zeros(0)
     omega_l1 = np.asarray(omega.value, float)
     contribution = contributions(problem, omega_l1)
@@ -395,15 +395,16 @@ def solve_relaxation(
     normalize_columns: bool = False,
     prune: bool = True,
 ) -> SparseRelaxation:
-    r""":func:`sparse_relaxation` on an already validated :class:`LinearProblem`.
+    r"""[`sparse_relaxation`][sk_offwhite.certify.sparse_relaxation] on an already validated
+    `LinearProblem`.
 
-    Solves :math:`\min \|\omega\|_1` (or :math:`\sum_j \|\varphi_j\|_2|\omega_j|`
-    with ``normalize_columns``) s.t. :math:`\|y - \Phi_\theta\theta - \Phi\omega\|_2
-    \le \mu`, keeps the terms with :math:`c_j = \|\varphi_j\hat\omega_j\|_2 >`
-    ``support_tol`` :math:`\max(\max_k c_k, \mu)` and, with ``prune``, removes in
-    ascending :math:`c_j` every term whose removal keeps the least-squares refit within
-    :math:`\mu`, then returns that refit on the final support (see
-    :func:`sparse_relaxation` for the details).
+    Solves $\min \|\omega\|_1$ (or $\sum_j \|\varphi_j\|_2|\omega_j|$
+    with ``normalize_columns``) s.t. $\|y - \Phi_\theta\theta - \Phi\omega\|_2
+    \le \mu$, keeps the terms with $c_j = \|\varphi_j\hat\omega_j\|_2 >$
+    ``support_tol`` $\max(\max_k c_k, \mu)$ and, with ``prune``, removes in
+    ascending $c_j$ every term whose removal keeps the least-squares refit within
+    $\mu$, then returns that refit on the final support (see
+    [`sparse_relaxation`][sk_offwhite.certify.sparse_relaxation] for the details).
     """
     if normalize_columns:
         scaled, scales = unit_norm_problem(problem)
@@ -428,63 +429,63 @@ def sparse_relaxation(
     theta_names=None,
     feature_names=None,
 ) -> SparseRelaxation:
-    r"""Solve the convex relaxation (10): the smallest-:math:`\ell_1` correction within the bound.
+    r"""Solve the convex relaxation (10): the smallest-$\ell_1$ correction within the bound.
 
-    .. math::
-
-        (\hat\theta, \hat\omega) = \arg\min_{\theta, \omega} \|\omega\|_1
-        \quad \text{s.t.} \quad \|y - \Phi_\theta\theta - \Phi\omega\|_2 \le \mu .
+    $$
+    (\hat\theta, \hat\omega) = \arg\min_{\theta, \omega} \|\omega\|_1
+    \quad \text{s.t.} \quad \|y - \Phi_\theta\theta - \Phi\omega\|_2 \le \mu .
+    $$
 
     Parameters
     ----------
     phi_theta : array-like of shape (T, n_theta)
-        Physical regressors :math:`\Phi_\theta` (:math:`\Xi` in the paper); :math:`\theta` is
+        Physical regressors $\Phi_\theta$ ($\Xi$ in the paper); $\theta$ is
         free.
     phi : array-like of shape (T, m)
-        Dictionary :math:`\Phi`.
+        Dictionary $\Phi$.
     y : array-like of shape (T,)
         Observations.
     mu : float
-        Noise bound :math:`\mu > 0` (Assumption 2: :math:`\|\eta\|_2 \le \mu`).
+        Noise bound $\mu > 0$ (Assumption 2: $\|\eta\|_2 \le \mu$).
     support_tol : float, default=1e-6
         Round-off threshold, relative (never an absolute coefficient size). With the
-        contributions :math:`c_j = \|\varphi_j\hat\omega_j\|_2 = |\hat\omega_j|\,
-        \|\varphi_j\|_2` of the :math:`\ell_1` solution, term :math:`j` is a candidate
-        when :math:`c_j >` ``support_tol`` :math:`\cdot \max(\max_k c_k,\ \mu)`; the
-        others are set to exactly 0. The floor ``support_tol`` :math:`\mu` (a term that
+        contributions $c_j = \|\varphi_j\hat\omega_j\|_2 = |\hat\omega_j|\,
+        \|\varphi_j\|_2$ of the $\ell_1$ solution, term $j$ is a candidate
+        when $c_j >$ ``support_tol`` $\cdot \max(\max_k c_k,\ \mu)$; the
+        others are set to exactly 0. The floor ``support_tol`` $\mu$ (a term that
         moves the residual by less than that is negligible against the noise) makes an
         all-zero optimum return an empty support.
     normalize_columns : bool, default=False
-        Minimise :math:`\sum_j \|\varphi_j\|_2\, |\omega_j|` instead of
-        :math:`\|\omega\|_1`: the relaxation (10) on the dictionary rescaled to unit-norm
-        columns (as pysindy's ``normalize_columns``). The plain :math:`\ell_1` norm favours
+        Minimise $\sum_j \|\varphi_j\|_2\, |\omega_j|$ instead of
+        $\|\omega\|_1$: the relaxation (10) on the dictionary rescaled to unit-norm
+        columns (as pysindy's ``normalize_columns``). The plain $\ell_1$ norm favours
         terms with large regressors whatever their role; the weighted one does not depend
         on the units of the dictionary. ``omega`` is returned in the original units.
     prune : bool, default=True
-        Make the support exact. With a tight :math:`\mu` the :math:`\ell_1` solution
-        carries small spurious terms (measured at :math:`\mu = \|\eta\|_2`: up to
-        :math:`2 \cdot 10^{-5}` of the largest contribution, a few per cent of
-        :math:`\mu`) that the threshold above keeps. With ``prune``,
-        the candidate terms are visited once in ascending order of :math:`c_j`, and term
-        :math:`j` is removed from the current support :math:`S` when the least-squares
+        Make the support exact. With a tight $\mu$ the $\ell_1$ solution
+        carries small spurious terms (measured at $\mu = \|\eta\|_2$: up to
+        $2 \cdot 10^{-5}$ of the largest contribution, a few per cent of
+        $\mu$) that the threshold above keeps. With ``prune``,
+        the candidate terms are visited once in ascending order of $c_j$, and term
+        $j$ is removed from the current support $S$ when the least-squares
         refit without it still satisfies the data constraint,
 
-        .. math::
-
-            \min_{\theta,\ \omega_{S \setminus j}}
-            \|y - \Phi_\theta\theta - \Phi_{S \setminus j}\omega_{S \setminus j}\|_2
-            \le \mu,
+        $$
+        \min_{\theta,\ \omega_{S \setminus j}}
+        \|y - \Phi_\theta\theta - \Phi_{S \setminus j}\omega_{S \setminus j}\|_2
+        \le \mu,
+        $$
 
         so a term is kept only if removing it violates the constraint (this holds for
         every term of the final support, not only at its visit: the refit residual
-        only grows as :math:`S` shrinks). The returned estimate is then the debiased
-        least-squares refit on the final support :math:`S`,
-        :math:`(\hat\theta, \hat\omega_S) = \arg\min \|y - \Phi_\theta\theta -
-        \Phi_S\omega_S\|_2`, :math:`\hat\omega_{S^c} = 0`: its residual is
-        :math:`\le \mu` whenever a term was removed, and otherwise no larger than that of
-        the thresholded :math:`\ell_1` solution (which is a candidate of the same least
+        only grows as $S$ shrinks). The returned estimate is then the debiased
+        least-squares refit on the final support $S$,
+        $(\hat\theta, \hat\omega_S) = \arg\min \|y - \Phi_\theta\theta -
+        \Phi_S\omega_S\|_2$, $\hat\omega_{S^c} = 0$: its residual is
+        $\le \mu$ whenever a term was removed, and otherwise no larger than that of
+        the thresholded $\ell_1$ solution (which is a candidate of the same least
         squares), so it is kept over the latter in every case. ``prune=False`` returns
-        the thresholded :math:`\ell_1` solution itself.
+        the thresholded $\ell_1$ solution itself.
     theta_names, feature_names : sequence of str, optional
         Names for the summary.
 

@@ -1,37 +1,37 @@
-r"""A vertex for Theorem 3 chosen to pass its test: the searched :math:`\omega^v`.
+r"""A vertex for Theorem 3 chosen to pass its test: the searched $\omega^v$.
 
-Theorem 3's proof uses three facts about :math:`\omega^v`, none of them that it minimises
-:math:`\|\omega\|_1` in (11):
+Theorem 3's proof uses three facts about $\omega^v$, none of them that it minimises
+$\|\omega\|_1$ in (11):
 
-1. :math:`\|e^*(\omega^v)\|_2 \ge \mu \ge \|e^*(\bar\omega)\|_2`, so Theorem 2 applies to
-   :math:`\omega' = \bar\omega` around :math:`\omega^v` (the paper asks for (11d) active,
-   :math:`= \mu`; :math:`\ge` is what Theorem 2 needs);
-2. :math:`\|\bar\omega\|_0 \le M \le \|\omega^v\|_0` (:math:`\hat\omega` is feasible, and
-   the test below makes every :math:`\omega^v_i`, :math:`i \in S`, non-zero), and the level
-   of :math:`\sigma^2_n` covers the support of :math:`\bar\omega - \omega^v`;
-3. every :math:`i \in S` has :math:`\mathrm{sign}(\hat\omega_i)\,\omega^v_i > \tau`.
+1. $\|e^*(\omega^v)\|_2 \ge \mu \ge \|e^*(\bar\omega)\|_2$, so Theorem 2 applies to
+   $\omega' = \bar\omega$ around $\omega^v$ (the paper asks for (11d) active,
+   $= \mu$; $\ge$ is what Theorem 2 needs);
+2. $\|\bar\omega\|_0 \le M \le \|\omega^v\|_0$ ($\hat\omega$ is feasible, and
+   the test below makes every $\omega^v_i$, $i \in S$, non-zero), and the level
+   of $\sigma^2_n$ covers the support of $\bar\omega - \omega^v$;
+3. every $i \in S$ has $\mathrm{sign}(\hat\omega_i)\,\omega^v_i > \tau$.
 
-Then :math:`\|\bar\omega - \omega^v\|_\infty \le \tau` puts every term of :math:`S` in
-:math:`\mathrm{supp}\,\bar\omega` with the sign of :math:`\hat\omega`, and
-:math:`\|\bar\omega\|_0 \le M` leaves no room for another: :math:`\mathrm{supp}\,\bar\omega
-= S`. (11)'s :math:`\ell_1` minimiser is one such vector; this module looks for the one
-with the largest margin :math:`\min_{i \in S} \mathrm{sign}(\hat\omega_i)\omega^v_i - \tau`.
+Then $\|\bar\omega - \omega^v\|_\infty \le \tau$ puts every term of $S$ in
+$\mathrm{supp}\,\bar\omega$ with the sign of $\hat\omega$, and
+$\|\bar\omega\|_0 \le M$ leaves no room for another: $\mathrm{supp}\,\bar\omega
+= S$. (11)'s $\ell_1$ minimiser is one such vector; this module looks for the one
+with the largest margin $\min_{i \in S} \mathrm{sign}(\hat\omega_i)\omega^v_i - \tau$.
 
 The search is the convex-concave procedure: with the conservative threshold (level
-:math:`m'`, every kept column)
+$m'$, every kept column)
 
-.. math::
+$$
+\tilde\tau(\omega) = \frac{\|Q^\top e\|_\infty + \|Q^\top e\|_2}{\lambda_{\min}(Q^\top Q)}
+\ge \tau(\omega), \qquad e = \Upsilon_0 y - Q\omega,
+$$
 
-    \tilde\tau(\omega) = \frac{\|Q^\top e\|_\infty + \|Q^\top e\|_2}{\lambda_{\min}(Q^\top Q)}
-    \ge \tau(\omega), \qquad e = \Upsilon_0 y - Q\omega,
-
-each step minimises the convex :math:`\tilde\tau(\omega) - \min_{i \in S}
-\mathrm{sign}(\hat\omega_i)\omega_i` over the half-space
-:math:`\langle e_k, e(\omega)\rangle \ge \mu\|e_k\|_2`, which lies inside
-:math:`\{\|e(\omega)\|_2 \ge \mu\}` (Cauchy-Schwarz): every step is a valid vertex, the
+each step minimises the convex $\tilde\tau(\omega) - \min_{i \in S}
+\mathrm{sign}(\hat\omega_i)\omega_i$ over the half-space
+$\langle e_k, e(\omega)\rangle \ge \mu\|e_k\|_2$, which lies inside
+$\{\|e(\omega)\|_2 \ge \mu\}$ (Cauchy-Schwarz): every step is a valid vertex, the
 margin never decreases, and the start is (11)'s solution. Everything is in the
-:math:`m' \times m'` Gram matrix, whatever :math:`T`. The certificate then tests the vertex
-found with the exact :math:`\tau` (:func:`~._certificates.support_threshold`).
+$m' \times m'$ Gram matrix, whatever $T$. The certificate then tests the vertex
+found with the exact $\tau$ (`support_threshold`).
 """
 
 from __future__ import annotations
@@ -52,15 +52,15 @@ STEP_RTOL = 1e-6
 """The search ends when a step raises the margin by less than this fraction of it."""
 
 RESIDUAL_SLACK = 1e-9
-"""Relative slack by which the half-space keeps :math:`\\|e\\|_2` above :math:`\\mu`
+"""Relative slack by which the half-space keeps $\\|e\\|_2$ above $\\mu$
 (solver round-off must not bring a vertex below it)."""
 
 
 @dataclass(frozen=True)
 class _Gram:
-    r"""The projected problem on the kept columns: :math:`G = Q^\top Q`,
-    :math:`g = Q^\top\Upsilon_0 y`, :math:`\|\Upsilon_0 y\|^2`, the support (as positions
-    among the kept columns) and its signs, :math:`\lambda_{\min}(G)`."""
+    r"""The projected problem on the kept columns: $G = Q^\top Q$,
+    $g = Q^\top\Upsilon_0 y$, $\|\Upsilon_0 y\|^2$, the support (as positions
+    among the kept columns) and its signs, $\lambda_{\min}(G)$."""
 
     gram: np.ndarray
     inner: np.ndarray
@@ -80,15 +80,15 @@ def _gram(projected, projected_y, kept, omega_hat) -> _Gram:
 
 
 def _surrogate_margin(gram: _Gram, omega: np.ndarray) -> float:
-    r""":math:`\min_S \mathrm{sign}(\hat\omega_i)\omega_i - \tilde\tau(\omega)`."""
+    r"""$\min_S \mathrm{sign}(\hat\omega_i)\omega_i - \tilde\tau(\omega)$."""
     inner = gram.inner - gram.gram @ omega
     tau = (np.max(np.abs(inner)) + np.linalg.norm(inner)) / gram.sigma2
     return float(np.min(gram.signs * omega[gram.support]) - tau)
 
 
 def _half_space(gram: _Gram, omega: np.ndarray, mu: float) -> tuple[np.ndarray, float]:
-    r"""``(a, b)`` with :math:`a^\top\omega \le b` the half-space
-    :math:`\langle e_k, e(\omega)\rangle \ge \mu(1 + \text{slack})\|e_k\|` at ``omega``,
+    r"""``(a, b)`` with $a^\top\omega \le b$ the half-space
+    $\langle e_k, e(\omega)\rangle \ge \mu(1 + \text{slack})\|e_k\|$ at ``omega``,
     scaled to a unit normal."""
     normal = gram.inner - gram.gram @ omega  # Q^T e_k
     norm_e = np.sqrt(max(gram.energy - 2 * gram.inner @ omega + omega @ gram.gram @ omega, 0.0))
@@ -112,7 +112,7 @@ def _step_program(gram: _Gram, start: np.ndarray):
 def _climb(gram: _Gram, start: np.ndarray, mu: float) -> np.ndarray:
     r"""Convex-concave steps from ``start`` while the surrogate margin rises; ``start``
     itself when no step was taken. The first step is kept whatever its margin: ``start``
-    meets :math:`\|e\|_2 \ge \mu` only to the tolerance of (11)'s solver, every step
+    meets $\|e\|_2 \ge \mu$ only to the tolerance of (11)'s solver, every step
     exactly."""
     if not np.any(gram.inner - gram.gram @ start):
         return start  # e is orthogonal to every column: tau = 0 at start already
@@ -138,15 +138,15 @@ def search_vertex(
     omega_hat: np.ndarray,
     start: np.ndarray,
 ) -> np.ndarray | None:
-    r"""A vertex :math:`\omega^v` with :math:`\|e^*(\omega^v)\|_2 \ge \mu` and the largest
+    r"""A vertex $\omega^v$ with $\|e^*(\omega^v)\|_2 \ge \mu$ and the largest
     margin the search reaches from ``start`` (see the module notes).
 
     Parameters
     ----------
     projected : ndarray of shape (T, m)
-        :math:`Q = \Upsilon_0\Phi`.
+        $Q = \Upsilon_0\Phi$.
     projected_y : ndarray of shape (T,)
-        :math:`\Upsilon_0 y`.
+        $\Upsilon_0 y$.
     mu : float
         The noise bound.
     kept : ndarray of bool, shape (m,)
@@ -160,7 +160,7 @@ def search_vertex(
     -------
     ndarray of shape (m,) or None
         The vertex (zero on the confounded columns), or ``None`` when the search cannot
-        run (:math:`\lambda_{\min}(Q^\top Q) \le 0`) or no step raised the margin.
+        run ($\lambda_{\min}(Q^\top Q) \le 0$) or no step raised the margin.
     """
     gram = _gram(projected, projected_y, kept, omega_hat)
     if not gram.sigma2 > 0:

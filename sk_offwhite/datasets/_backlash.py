@@ -32,8 +32,8 @@ def servo_rhs(x, u, theta):
 
 def play(u, width: float, start: float | None = None) -> np.ndarray:
     """The exact backlash of a command sequence ``u`` (1-D): the driven side's position
-    :math:`p_{k+1} = \\mathrm{clip}(p_k, u_k - w, u_k + w)`, :math:`p_0` = ``start``
-    (``u[0]`` when ``None``); returns :math:`p_1, \\dots, p_n`."""
+    $p_{k+1} = \\mathrm{clip}(p_k, u_k - w, u_k + w)$, $p_0$ = ``start``
+    (``u[0]`` when ``None``); returns $p_1, \\dots, p_n$."""
     u = np.asarray(u, dtype=np.float64)
     position = float(u[0]) if start is None else float(start)
     out = np.empty_like(u)
@@ -72,20 +72,20 @@ def make_backlash_servo(
 ) -> Bunch:
     """Position servo whose physics assumes a stiff transmission that has play (backlash).
 
-    True system, one explicit-Euler step of :math:`\\Delta t = 5` ms per sample:
+    True system, one explicit-Euler step of $\\Delta t = 5$ ms per sample:
 
-    .. math::
+    $$
+    p_{k+1} = \\mathrm{clip}(p_k, u_k - w, u_k + w), \\qquad
+    \\dot\\vartheta = \\omega, \\quad \\dot\\omega = k (p - \\vartheta) - c\\,\\omega,
+    \\qquad z = \\vartheta + \\eta,
+    $$
 
-        p_{k+1} = \\mathrm{clip}(p_k, u_k - w, u_k + w), \\qquad
-        \\dot\\vartheta = \\omega, \\quad \\dot\\omega = k (p - \\vartheta) - c\\,\\omega,
-        \\qquad z = \\vartheta + \\eta,
-
-    with the motor angle ``u`` (rad) as input, the play's half-width :math:`w = 0.05` rad,
-    :math:`k = 400` s⁻² (a 3.2 Hz resonance) and :math:`c = 8` s⁻¹ (damping ratio 0.2);
-    the load starts at rest at 0 and the play at :math:`p_0 = u_0`. The physics has
-    :math:`p = u`. The effect has memory (:math:`p` depends on the input's past), so it is
-    no function of :math:`(\\vartheta, \\omega, u)`: ``hidden_effect`` gives the realised
-    contribution :math:`\\Delta t\\, k (p_{k+1} - u_k)` to the rate equation on the
+    with the motor angle ``u`` (rad) as input, the play's half-width $w = 0.05$ rad,
+    $k = 400$ s⁻² (a 3.2 Hz resonance) and $c = 8$ s⁻¹ (damping ratio 0.2);
+    the load starts at rest at 0 and the play at $p_0 = u_0$. The physics has
+    $p = u$. The effect has memory ($p$ depends on the input's past), so it is
+    no function of $(\\vartheta, \\omega, u)$: ``hidden_effect`` gives the realised
+    contribution $\\Delta t\\, k (p_{k+1} - u_k)$ to the rate equation on the
     estimation record (``"contribution"``) and the played positions (``"played"``,
     ``"played_val"``) instead of a function; ``hidden_effect["rates"]`` is
     ``{"backlash": w}``. Input: zero-mean multisine 0-2 Hz (0.01 cycles/sample), std 0.5

@@ -26,7 +26,7 @@ SATURATION_LEVEL = 10.0
 """Level (V) at which the lower-tank sensor saturates in the measured records."""
 
 SQRT_EPS = 1e-6
-"""Floor used by :func:`safe_sqrt`."""
+"""Floor used by [`safe_sqrt`][sk_offwhite.datasets.safe_sqrt]."""
 
 _PARAMETER_NAMES = ("k1", "k2", "k3", "k4")
 _FILES = {"est": "cascaded_tanks_estimation.csv", "val": "cascaded_tanks_validation.csv"}
@@ -117,10 +117,10 @@ according to a third-party manifest, not verified). Converted from dataBenchmark
 def safe_sqrt(x, eps: float = SQRT_EPS):
     """Square root that stays finite, with a finite gradient, for ``x <= 0``.
 
-    Computes :math:`\\sqrt{\\max(x, \\varepsilon)}`: equal to :math:`\\sqrt{x}` for
-    :math:`x \\ge \\varepsilon`, constant :math:`\\sqrt{\\varepsilon}` (gradient 0) below.
-    The largest gradient is :math:`1 / (2\\sqrt{\\varepsilon}) = 500` for the default
-    :math:`\\varepsilon = 10^{-6}`. Written with ``jax.numpy``.
+    Computes $\\sqrt{\\max(x, \\varepsilon)}$: equal to $\\sqrt{x}$ for
+    $x \\ge \\varepsilon$, constant $\\sqrt{\\varepsilon}$ (gradient 0) below.
+    The largest gradient is $1 / (2\\sqrt{\\varepsilon}) = 500$ for the default
+    $\\varepsilon = 10^{-6}$. Written with ``jax.numpy``.
     """
     return jnp.sqrt(jnp.maximum(x, eps))
 
@@ -128,10 +128,11 @@ def safe_sqrt(x, eps: float = SQRT_EPS):
 def cascaded_tanks_rhs(x, u, theta):
     """Rate of change of the two levels, eq. (21) without noise (``jax.numpy``).
 
-    .. math::
+    $$
+    \\dot x_1 = -k_1 \\sqrt{x_1} + k_4 u, \\qquad
+    \\dot x_2 = k_2 \\sqrt{x_1} - k_3 \\sqrt{x_2}.
+    $$
 
-        \\dot x_1 = -k_1 \\sqrt{x_1} + k_4 u, \\qquad
-        \\dot x_2 = k_2 \\sqrt{x_1} - k_3 \\sqrt{x_2}.
     """
     root1, root2 = safe_sqrt(x[0]), safe_sqrt(x[1])
     inflow = theta["k4"] * u[0]
@@ -139,14 +140,14 @@ def cascaded_tanks_rhs(x, u, theta):
 
 
 def cascaded_tanks_rhs_exponents(x, u, theta):
-    r""":func:`cascaded_tanks_rhs` with the outflow laws' exponents as parameters:
+    r"""`cascaded_tanks_rhs` with the outflow laws' exponents as parameters:
 
-    .. math::
+    $$
+    \dot x_1 = -k_1 x_1^{a_1} + k_4 u, \qquad
+    \dot x_2 = k_2 x_1^{a_1} - k_3 x_2^{a_2},
+    $$
 
-        \dot x_1 = -k_1 x_1^{a_1} + k_4 u, \qquad
-        \dot x_2 = k_2 x_1^{a_1} - k_3 x_2^{a_2},
-
-    levels floored at :math:`10^{-6}` as in :func:`safe_sqrt` (``jax.numpy``).
+    levels floored at $10^{-6}$ as in [`safe_sqrt`][sk_offwhite.datasets.safe_sqrt] (``jax.numpy``).
     """
     flow1 = jnp.maximum(x[0], SQRT_EPS) ** theta["a1"]
     flow2 = jnp.maximum(x[1], SQRT_EPS) ** theta["a2"]
@@ -187,16 +188,17 @@ def cascaded_tanks_physics(
 ) -> PhysicsModel:
     """Physical model of the Cascaded Tanks, eq. (21) of Donati et al. without noise.
 
-    .. math::
+    $$
+    x_{1,k+1} &= x_{1,k} + T_s(-k_1 \\sqrt{x_{1,k}} + k_4 u_k), \\\\
+    x_{2,k+1} &= x_{2,k} + T_s(k_2 \\sqrt{x_{1,k}} - k_3 \\sqrt{x_{2,k}}), \\qquad
+    z_k = x_{2,k},
+    $$
 
-        x_{1,k+1} &= x_{1,k} + T_s(-k_1 \\sqrt{x_{1,k}} + k_4 u_k), \\\\
-        x_{2,k+1} &= x_{2,k} + T_s(k_2 \\sqrt{x_{1,k}} - k_3 \\sqrt{x_{2,k}}), \\qquad
-        z_k = x_{2,k},
-
-    i.e. one explicit-Euler step of :func:`cascaded_tanks_rhs` per sample
-    (:meth:`PhysicsModel.from_ode` with ``method="euler"``). Square roots use
-    :func:`safe_sqrt` (``sqrt(max(x, 1e-6))``) so that levels at or below zero give finite
-    values and gradients. Overflow and saturation are deliberately not modelled.
+    i.e. one explicit-Euler step of `cascaded_tanks_rhs` per sample
+    ([`PhysicsModel.from_ode`][sk_offwhite.PhysicsModel.from_ode] with ``method="euler"``). Square
+    roots use [`safe_sqrt`][sk_offwhite.datasets.safe_sqrt] (``sqrt(max(x, 1e-6))``) so that levels
+    at or below zero give finite values and gradients. Overflow and saturation are deliberately not
+    modelled.
 
     Parameters
     ----------
@@ -213,11 +215,11 @@ def cascaded_tanks_physics(
     sampling_time : float, default=4.0
         ``Ts`` in seconds.
     relaxable_exponents : bool, default=False
-        Write the square roots as powers :math:`x_i^{a_i}` with exponents ``a1``, ``a2``
-        fixed at 1/2 and relaxable (:class:`~sk_offwhite.Parameter`, bounds
-        :data:`EXPONENT_BOUNDS`): the closed loop may then free them
-        (:class:`~sk_offwhite.RelaxedLaw`) if that lowers the cross-validated error
-        (:func:`cascaded_tanks_rhs_exponents`).
+        Write the square roots as powers $x_i^{a_i}$ with exponents ``a1``, ``a2``
+        fixed at 1/2 and relaxable ([`Parameter`][sk_offwhite.Parameter], bounds
+        `EXPONENT_BOUNDS`): the closed loop may then free them
+        ([`RelaxedLaw`][sk_offwhite.RelaxedLaw]) if that lowers the cross-validated error
+        (`cascaded_tanks_rhs_exponents`).
 
     Returns
     -------

@@ -63,7 +63,7 @@ def _gaussian(rng: np.random.RandomState, shape, std: float) -> np.ndarray:
 
 
 def _uniform(rng: np.random.RandomState, shape, bound: float) -> np.ndarray:
-    """Uniform draws in ``[-bound, bound]`` (always drawn, as in :func:`_gaussian`)."""
+    """Uniform draws in ``[-bound, bound]`` (always drawn, as in `_gaussian`)."""
     return float(bound) * rng.uniform(-1.0, 1.0, shape)
 
 

@@ -1,8 +1,8 @@
 """A load driven through a spring coupling with a clearance: a threshold on a difference.
 
-Same conventions as :mod:`sk_offwhite.datasets._mechanical`. The companion of
-:func:`~sk_offwhite.datasets.make_backlash_servo`: there the play has memory (the driven
-side stays where the input left it), here the coupling's spring is slack inside a gap
+Same conventions as `sk_offwhite.datasets._mechanical`. The companion of
+[`make_backlash_servo`][sk_offwhite.datasets.make_backlash_servo]: there the play has memory (the
+driven side stays where the input left it), here the coupling's spring is slack inside a gap
 (a dead zone on the deflection, no memory). The loop should tell them apart.
 """
 
@@ -76,21 +76,22 @@ def make_clearance_coupling(
 ) -> Bunch:
     r"""A load driven through a spring coupling whose physics ignores a clearance.
 
-    True system, one explicit-Euler step of :math:`\Delta t = 5` ms per sample:
+    True system, one explicit-Euler step of $\Delta t = 5$ ms per sample:
 
-    .. math::
+    $$
+    \dot\theta = \omega, \qquad
+    \dot\omega = k\,\mathrm{dz}(u - \theta) - c\,\omega, \qquad z = \theta + \eta,
+    $$
 
-        \dot\theta = \omega, \qquad
-        \dot\omega = k\,\mathrm{dz}(u - \theta) - c\,\omega, \qquad z = \theta + \eta,
-
-    with :math:`\mathrm{dz}(d) = \mathrm{sign}(d)\max(|d| - g, 0)`, the gap
-    :math:`g = 0.05` rad, :math:`k = 400` s⁻², :math:`c = 8` s⁻¹ (drive angle ``u`` and load
-    angle in rad, both of kind ``"angle"``); the physics has :math:`\mathrm{dz}(d) = d` and
-    fits :math:`k` and :math:`c`. The hidden effect
-    :math:`\Delta t\,k\,[\mathrm{dz}(u - \theta) - (u - \theta)]` enters the rate equation
+    with $\mathrm{dz}(d) = \mathrm{sign}(d)\max(|d| - g, 0)$, the gap
+    $g = 0.05$ rad, $k = 400$ s⁻², $c = 8$ s⁻¹ (drive angle ``u`` and load
+    angle in rad, both of kind ``"angle"``); the physics has $\mathrm{dz}(d) = d$ and
+    fits $k$ and $c$. The hidden effect
+    $\Delta t\,k\,[\mathrm{dz}(u - \theta) - (u - \theta)]$ enters the rate equation
     (index 1); ``hidden_effect["rates"]`` is ``{"gap": 0.05, "k": 400.0}``. Unlike the
-    play of :func:`make_backlash_servo`, the gap has no memory. Input: multisine 0-0.01
-    cycles/sample (0-2 Hz), standard deviation 0.5 rad. The load starts at rest.
+    play of [`make_backlash_servo`][sk_offwhite.datasets.make_backlash_servo], the gap has no
+    memory. Input: multisine 0-0.01 cycles/sample (0-2 Hz), standard deviation 0.5 rad. The load
+    starts at rest.
 
     Suggested library: polynomials of degree 3 on ``[theta, omega, u]``; it only
     approximates the dead zone.

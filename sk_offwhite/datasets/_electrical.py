@@ -1,6 +1,6 @@
 """Synthetic electrical circuit whose declared physics misses one effect.
 
-Same conventions as :mod:`sk_offwhite.datasets._mechanical`: one explicit-Euler step of the
+Same conventions as `sk_offwhite.datasets._mechanical`: one explicit-Euler step of the
 declared physics per sample plus an additive hidden effect on the capacitor's equation, in
 SI units (volts, seconds).
 """
@@ -22,7 +22,7 @@ DIODE_DROP, DIODE_DT, DIODE_SOURCE_STD = 0.6, 1e-3, 3.0
 
 
 def diode_rc_rhs(x, u, theta):
-    r""":math:`\dot v = (e - v)/\tau - v/\tau_L`: charged from the source through a resistor,
+    r"""$\dot v = (e - v)/\tau - v/\tau_L$: charged from the source through a resistor,
     discharged through the load."""
     return ((u[0] - x[0]) / theta["tau"] - x[0] / theta["tau_load"])[None]
 
@@ -81,18 +81,18 @@ def make_diode_rc(
 ) -> Bunch:
     r"""An RC circuit whose physics does not know it is charged through a diode.
 
-    True system, one explicit-Euler step of :math:`\Delta t = 1` ms per sample:
+    True system, one explicit-Euler step of $\Delta t = 1$ ms per sample:
 
-    .. math::
+    $$
+    \dot v = \frac{\max(e - v - V_d,\ 0)}{\tau} - \frac{v}{\tau_L}, \qquad
+    z = v + \eta,
+    $$
 
-        \dot v = \frac{\max(e - v - V_d,\ 0)}{\tau} - \frac{v}{\tau_L}, \qquad
-        z = v + \eta,
-
-    with :math:`\tau = RC = 10` ms, :math:`\tau_L = R_L C = 100` ms and the diode's forward
-    drop :math:`V_d = 0.6` V (source ``e`` and capacitor voltage ``v`` in volts, both of
-    kind ``"voltage"``); the physics is :math:`\dot v = (e - v)/\tau - v/\tau_L` and fits
-    :math:`\tau` and :math:`\tau_L`. The hidden effect
-    :math:`\Delta t\,[\max(e - v - V_d, 0) - (e - v)]/\tau` enters the capacitor's equation:
+    with $\tau = RC = 10$ ms, $\tau_L = R_L C = 100$ ms and the diode's forward
+    drop $V_d = 0.6$ V (source ``e`` and capacitor voltage ``v`` in volts, both of
+    kind ``"voltage"``); the physics is $\dot v = (e - v)/\tau - v/\tau_L$ and fits
+    $\tau$ and $\tau_L$. The hidden effect
+    $\Delta t\,[\max(e - v - V_d, 0) - (e - v)]/\tau$ enters the capacitor's equation:
     a half-wave rectifier with a smoothing capacitor, a peak detector. No current flows
     back into the source, and none until the source exceeds the capacitor by the drop.
     ``hidden_effect["rates"]`` is ``{"drop": 0.6, "tau": 0.01}``. Input: multisine

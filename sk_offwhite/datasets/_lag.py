@@ -50,16 +50,16 @@ DRIVE_DELAY, HEATER_DELAY = 0.12, 9.0
 
 
 def lagged_command(u, time_constant: float, sampling_time: float, start=None) -> np.ndarray:
-    r"""What a first-order lag of time constant :math:`\tau` delivers over each held sample
+    r"""What a first-order lag of time constant $\tau$ delivers over each held sample
     of the command sequence ``u`` (1-D), its mean over the sample:
 
-    .. math::
+    $$
+    \tilde u_k = p_k + \beta (u_k - p_k), \qquad p_{k+1} = p_k + \alpha (u_k - p_k),
+    \qquad \alpha = 1 - e^{-T_s/\tau}, \quad \beta = 1 - \frac{\tau}{T_s}\,\alpha,
+    $$
 
-        \tilde u_k = p_k + \beta (u_k - p_k), \qquad p_{k+1} = p_k + \alpha (u_k - p_k),
-        \qquad \alpha = 1 - e^{-T_s/\tau}, \quad \beta = 1 - \frac{\tau}{T_s}\,\alpha,
-
-    the exact solution of :math:`\tau \dot p = u - p` under a zero-order hold
-    (:math:`p_0` = ``start``, ``u[0]`` when ``None``: settled at the first command).
+    the exact solution of $\tau \dot p = u - p$ under a zero-order hold
+    ($p_0$ = ``start``, ``u[0]`` when ``None``: settled at the first command).
     """
     u = np.asarray(u, dtype=np.float64)
     alpha, beta = lag_coefficients(time_constant / sampling_time, np)
@@ -75,7 +75,7 @@ def lagged_command(u, time_constant: float, sampling_time: float, start=None) ->
 class _LaggedPlant:
     r"""A first-order plant driven through a lag or a dead time of its command:
     ``physics(values)`` the declared model (started at ``x0``), ``gain`` the factor that
-    turns the error :math:`\tilde u - u` into the state's rate, ``memory`` the lag's
+    turns the error $\tilde u - u$ into the state's rate, ``memory`` the lag's
     ``{"time_constant": τ}`` or the dead time's ``{"delay": d}``, the command
     ``input_mean + input_std`` times a unit multisine of ``band`` cycles/sample, floored at
     ``input_floor``."""
@@ -210,22 +210,22 @@ def make_lagged_drive(
 ) -> Bunch:
     """First-order motor whose physics assumes the drive applies its command at once.
 
-    True system, one explicit-Euler step of :math:`\\Delta t = 0.05` s per sample, the
-    motor driven by its amplifier's output :math:`p`, a first-order lag of the command
-    ``u`` (V) with time constant :math:`\\tau = 0.15` s (three samples), integrated exactly
-    over each held sample (:func:`lagged_command`, the mean over the sample
-    :math:`\\tilde u`):
+    True system, one explicit-Euler step of $\\Delta t = 0.05$ s per sample, the
+    motor driven by its amplifier's output $p$, a first-order lag of the command
+    ``u`` (V) with time constant $\\tau = 0.15$ s (three samples), integrated exactly
+    over each held sample ([`lagged_command`][sk_offwhite.datasets.lagged_command], the mean over
+    the sample $\\tilde u$):
 
-    .. math::
+    $$
+    \\tau \\dot p = u - p, \\qquad \\dot\\omega = -a \\omega + b\\, \\tilde u, \\qquad
+    z = \\omega + \\eta,
+    $$
 
-        \\tau \\dot p = u - p, \\qquad \\dot\\omega = -a \\omega + b\\, \\tilde u, \\qquad
-        z = \\omega + \\eta,
-
-    with :math:`a = 2` 1/s and :math:`b = 4` rad/(V s²) (speed in rad/s); the amplifier
+    with $a = 2$ 1/s and $b = 4$ rad/(V s²) (speed in rad/s); the amplifier
     starts settled at the first command and the motor at rest. The physics has
-    :math:`\\tilde u = u`. The effect has memory, so it is no function of
-    :math:`(\\omega, u)`: ``hidden_effect`` gives the realised contribution
-    :math:`\\Delta t\\, b (\\tilde u_k - u_k)` to the speed equation on the estimation
+    $\\tilde u = u$. The effect has memory, so it is no function of
+    $(\\omega, u)$: ``hidden_effect`` gives the realised contribution
+    $\\Delta t\\, b (\\tilde u_k - u_k)$ to the speed equation on the estimation
     record (``"contribution"``) and the lagged commands (``"seen"``, ``"seen_val"``)
     instead of a function; ``hidden_effect["rates"]`` is ``{"time_constant": τ}``. Input:
     zero-mean multisine 0-0.6 Hz (0.03 cycles/sample), std 0.8 V, where the lag shifts the
@@ -261,15 +261,15 @@ def make_lagged_heater(
 ) -> Bunch:
     """Heated block whose physics assumes the heating element delivers its command at once.
 
-    The block of :func:`make_heated_block` (:math:`C \\dot T = p - G (T - T_a)`, SI units,
-    :math:`C` = 800 J/K, :math:`G` = 2.5 W/K, :math:`T_a` = 295 K, one explicit-Euler step of
-    :math:`\\Delta t` = 2 s per sample), heated by an element whose output :math:`p` is a
-    first-order lag of the commanded power ``P`` with time constant :math:`\\tau` = 30 s
+    The block of [`make_heated_block`][sk_offwhite.datasets.make_heated_block] ($C \\dot T = p - G
+    (T - T_a)$, SI units, $C$ = 800 J/K, $G$ = 2.5 W/K, $T_a$ = 295 K, one explicit-Euler step of
+    $\\Delta t$ = 2 s per sample), heated by an element whose output $p$ is a
+    first-order lag of the commanded power ``P`` with time constant $\\tau$ = 30 s
     (its own heat capacity), integrated exactly over each held sample
-    (:func:`lagged_command`); no power limit. The block starts at its steady state for the
-    mean power (313 K) and the element settled at the first command. The physics has
-    :math:`p = P`. ``hidden_effect`` gives the realised contribution
-    :math:`\\Delta t (\\tilde p_k - P_k) / C` and the lagged powers (``"seen"``,
+    ([`lagged_command`][sk_offwhite.datasets.lagged_command]); no power limit. The block starts at
+    its steady state for the mean power (313 K) and the element settled at the first command. The
+    physics has $p = P$. ``hidden_effect`` gives the realised contribution
+    $\\Delta t (\\tilde p_k - P_k) / C$ and the lagged powers (``"seen"``,
     ``"seen_val"``); ``hidden_effect["rates"]`` is ``{"time_constant": τ}``. Input: 45 W
     plus a multisine of std 25 W over 0-0.0025 Hz (0.01 cycles/sample), floored at 0.
 
@@ -287,7 +287,7 @@ def make_lagged_heater(
     Returns
     -------
     data : sklearn.utils.Bunch
-        As :func:`make_lagged_drive`.
+        As [`make_lagged_drive`][sk_offwhite.datasets.make_lagged_drive].
     """
     return _lagged_dataset(_HEATER, n_samples, noise_std, random_state, process_noise_std)
 
@@ -327,16 +327,16 @@ def make_delayed_drive(
 ) -> Bunch:
     """First-order motor whose physics assumes the command acts at once; it acts late.
 
-    The motor of :func:`make_lagged_drive` (:math:`\\dot\\omega = -a\\omega + b\\tilde u`,
-    :math:`a` = 2 1/s, :math:`b` = 4 rad/(V s²), one explicit-Euler step of
-    :math:`\\Delta t` = 0.05 s per sample), driven by the command ``u`` (V) after a dead
-    time :math:`d` (``delay``, 0.12 s by default, 2.4 samples: a command sent over a
+    The motor of [`make_lagged_drive`][sk_offwhite.datasets.make_lagged_drive] ($\\dot\\omega =
+    -a\\omega + b\\tilde u$, $a$ = 2 1/s, $b$ = 4 rad/(V s²), one explicit-Euler step of
+    $\\Delta t$ = 0.05 s per sample), driven by the command ``u`` (V) after a dead
+    time $d$ (``delay``, 0.12 s by default, 2.4 samples: a command sent over a
     network), the held command
-    delayed and averaged over each sample (:func:`delayed_command`,
-    :math:`\\tilde u_k = 0.6\\,u_{k-2} + 0.4\\,u_{k-3}`); the commands before the record
-    equal the first. The physics has :math:`\\tilde u = u`. ``hidden_effect`` gives the
-    realised contribution :math:`\\Delta t\\, b (\\tilde u_k - u_k)` (``"contribution"``),
-    the delayed commands (``"seen"``, ``"seen_val"``) and ``"rates"``
+    delayed and averaged over each sample
+    ([`delayed_command`][sk_offwhite.datasets.delayed_command], $\\tilde u_k = 0.6\\,u_{k-2} +
+    0.4\\,u_{k-3}$); the commands before the record equal the first. The physics has $\\tilde u =
+    u$. ``hidden_effect`` gives the realised contribution $\\Delta t\\, b (\\tilde u_k - u_k)$
+    (``"contribution"``), the delayed commands (``"seen"``, ``"seen_val"``) and ``"rates"``
     ``{"delay": d}``. Input: zero-mean multisine 0-0.6 Hz (0.03 cycles/sample), std
     0.8 V, where the dead time shifts the phase by up to 26°. Suggested library:
     polynomials of degree 2 on ``[omega, u]``.
@@ -357,7 +357,7 @@ def make_delayed_drive(
     Returns
     -------
     data : sklearn.utils.Bunch
-        As :func:`make_lagged_drive`.
+        As [`make_lagged_drive`][sk_offwhite.datasets.make_lagged_drive].
     """
     plant = _delayed_drive(checked_positive(delay, "delay"))
     return _lagged_dataset(plant, n_samples, noise_std, random_state, process_noise_std)
@@ -373,15 +373,15 @@ def make_delayed_heater(
 ) -> Bunch:
     """Heated block whose physics assumes the heat arrives at once; it arrives late.
 
-    The block of :func:`make_heated_block` (:math:`C \\dot T = \\tilde p - G (T - T_a)`,
-    SI units, :math:`C` = 800 J/K, :math:`G` = 2.5 W/K, :math:`T_a` = 295 K, one
-    explicit-Euler step of :math:`\\Delta t` = 2 s per sample), heated by a fluid that
-    carries the heater's power ``P`` to the block in :math:`d` (``delay``, 9 s by default,
+    The block of [`make_heated_block`][sk_offwhite.datasets.make_heated_block] ($C \\dot T = \\tilde
+    p - G (T - T_a)$, SI units, $C$ = 800 J/K, $G$ = 2.5 W/K, $T_a$ = 295 K, one
+    explicit-Euler step of $\\Delta t$ = 2 s per sample), heated by a fluid that
+    carries the heater's power ``P`` to the block in $d$ (``delay``, 9 s by default,
     4.5 samples: a transport delay), the held power delayed and averaged over each sample
-    (:func:`delayed_command`); the powers before the record equal the first. No power
-    limit. The block starts at its steady state for the mean power (313 K). The physics
-    has :math:`\\tilde p = P`. ``hidden_effect`` gives the realised contribution
-    :math:`\\Delta t (\\tilde p_k - P_k) / C`, the delayed powers (``"seen"``,
+    ([`delayed_command`][sk_offwhite.datasets.delayed_command]); the powers before the record equal
+    the first. No power limit. The block starts at its steady state for the mean power (313 K). The
+    physics has $\\tilde p = P$. ``hidden_effect`` gives the realised contribution
+    $\\Delta t (\\tilde p_k - P_k) / C$, the delayed powers (``"seen"``,
     ``"seen_val"``) and ``"rates"`` ``{"delay": d}``. Input: 45 W plus a multisine of
     std 25 W over 0-0.0025 Hz (0.01 cycles/sample), floored at 0.
 
@@ -401,7 +401,7 @@ def make_delayed_heater(
     Returns
     -------
     data : sklearn.utils.Bunch
-        As :func:`make_lagged_drive`.
+        As [`make_lagged_drive`][sk_offwhite.datasets.make_lagged_drive].
     """
     plant = _delayed_heater(checked_positive(delay, "delay"))
     return _lagged_dataset(plant, n_samples, noise_std, random_state, process_noise_std)

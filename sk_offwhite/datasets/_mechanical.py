@@ -1,6 +1,6 @@
 """Synthetic mechanical and electromechanical systems whose declared physics misses one effect.
 
-Same conventions as :mod:`sk_offwhite.datasets._synthetic`: each generator simulates a true
+Same conventions as `sk_offwhite.datasets._synthetic`: each generator simulates a true
 system, one explicit-Euler step of the declared physics per sample
 (``PhysicsModel.from_ode(..., method="euler")``) plus an additive hidden effect on one state
 equation, so that with no process noise
@@ -53,7 +53,7 @@ __all__ = [
 
 @dataclass(frozen=True)
 class _Generator:
-    """A :class:`_SimpleSystem` with its multisine input, default noise, rates and kinds;
+    """A `_SimpleSystem` with its multisine input, default noise, rates and kinds;
     the input is ``input_mean + input_std`` times a unit multisine, floored at
     ``input_floor`` (a heater's power cannot go below zero)."""
 
@@ -175,30 +175,30 @@ def make_coulomb_drive(
 ) -> Bunch:
     """Positioning drive whose physics misses Coulomb friction and a force offset.
 
-    True system, one explicit-Euler step of :math:`\\Delta t = 10^{-3}` s per sample:
+    True system, one explicit-Euler step of $\\Delta t = 10^{-3}$ s per sample:
 
-    .. math::
+    $$
+    \\dot q = v, \\qquad
+    m \\dot v = u - k q - c v - F_c \\tanh(v / \\varepsilon) + F_0, \\qquad z = q + \\eta,
+    $$
 
-        \\dot q = v, \\qquad
-        m \\dot v = u - k q - c v - F_c \\tanh(v / \\varepsilon) + F_0, \\qquad z = q + \\eta,
-
-    with :math:`m = 1` kg, :math:`k = 2500` N/m, :math:`c = 20` N s/m, :math:`F_c = 3` N,
-    :math:`\\varepsilon = 0.005` m/s and :math:`F_0 = 1.5` N (position ``q`` in m, velocity
+    with $m = 1$ kg, $k = 2500$ N/m, $c = 20$ N s/m, $F_c = 3$ N,
+    $\\varepsilon = 0.005$ m/s and $F_0 = 1.5$ N (position ``q`` in m, velocity
     ``v`` in m/s, force ``u`` in N). The hidden effect
-    :math:`\\Delta t (-F_c \\tanh(v/\\varepsilon) + F_0) / m` enters the velocity equation
+    $\\Delta t (-F_c \\tanh(v/\\varepsilon) + F_0) / m$ enters the velocity equation
     (index 1); ``hidden_effect["rates"]`` is ``{"coulomb": Fc/m, "offset": F0/m, "width":
     eps}`` (m/s², m/s², m/s).
 
-    Euler is stable for the linear part when :math:`c > \\Delta t\\, k` (then
-    :math:`|1 + \\Delta t \\lambda|^2 = 1 - \\Delta t\\, c / m + \\Delta t^2 k / m < 1`); the
-    nominal :math:`c = 5` N s/m would be stable (modulus 0.99875) but leaves the 8 Hz
+    Euler is stable for the linear part when $c > \\Delta t\\, k$ (then
+    $|1 + \\Delta t \\lambda|^2 = 1 - \\Delta t\\, c / m + \\Delta t^2 k / m < 1$); the
+    nominal $c = 5$ N s/m would be stable (modulus 0.99875) but leaves the 8 Hz
     resonance so lightly damped (damping ratio 0.025 after Euler's own negative damping of
-    :math:`\\Delta t\\, k`) that no input level gives both a moderate velocity and a
-    sizeable friction, so :math:`c` was raised to 20 N s/m (damping ratio 0.2, modulus
-    0.9912). Near :math:`v = 0` the friction's slope :math:`F_c / \\varepsilon` adds damping
+    $\\Delta t\\, k$) that no input level gives both a moderate velocity and a
+    sizeable friction, so $c$ was raised to 20 N s/m (damping ratio 0.2, modulus
+    0.9912). Near $v = 0$ the friction's slope $F_c / \\varepsilon$ adds damping
     and keeps the step stable (factor 0.4 on the velocity). Input: force multisine 0-10 Hz
     (0.01 cycles/sample), std 15 N: the velocity's std is about 0.38 m/s and the
-    friction's RMS is about 22 % of that of :math:`u / m`. The drive starts at rest.
+    friction's RMS is about 22 % of that of $u / m$. The drive starts at rest.
 
     Suggested library: polynomials of degree 3 on ``[q, v, u]`` (bias included) plus
     ``tanh(a / 0.005)`` of each variable (23 features); it contains the effect exactly.
@@ -287,23 +287,23 @@ def make_duffing_oscillator(
 ) -> Bunch:
     """Oscillator whose physics is linear but whose spring hardens (Duffing oscillator).
 
-    True system, one explicit-Euler step of :math:`\\Delta t = 0.02` s per sample:
+    True system, one explicit-Euler step of $\\Delta t = 0.02$ s per sample:
 
-    .. math::
+    $$
+    \\dot y = v, \\qquad
+    m \\dot v = u - k y - c v - k_3 y^3, \\qquad z = y + \\eta,
+    $$
 
-        \\dot y = v, \\qquad
-        m \\dot v = u - k y - c v - k_3 y^3, \\qquad z = y + \\eta,
-
-    with :math:`m = 1` kg, :math:`k = 1` N/m, :math:`c = 0.2` N s/m and
-    :math:`k_3 = 1.5` N/m³; the physics is the linear mass-spring-damper
-    (:math:`k_3 = 0`). The hidden effect :math:`-\\Delta t\\, k_3 y^3 / m` enters the
+    with $m = 1$ kg, $k = 1$ N/m, $c = 0.2$ N s/m and
+    $k_3 = 1.5$ N/m³; the physics is the linear mass-spring-damper
+    ($k_3 = 0$). The hidden effect $-\\Delta t\\, k_3 y^3 / m$ enters the
     velocity equation (index 1; it pulls ``y`` back towards 0, but its ``sign``, taken
     against the velocity, is set by end and discretisation terms and says little);
     ``hidden_effect["rates"]`` is ``{"cubic": k3/m}`` (1/(m² s²)). At the largest
-    :math:`|y|` (about 1 m) the cubic force is about 1.5 times the linear one. Euler is
-    stable while :math:`c > \\Delta t (k + 3 k_3 y^2)` (the tangent stiffness): the
-    eigenvalues' modulus is 0.9982 at :math:`y = 0`, 0.9993 at :math:`|y| = 1.1` and
-    reaches 1 only at :math:`|y| = \\sqrt 2`. Input: force multisine 0-0.5 Hz
+    $|y|$ (about 1 m) the cubic force is about 1.5 times the linear one. Euler is
+    stable while $c > \\Delta t (k + 3 k_3 y^2)$ (the tangent stiffness): the
+    eigenvalues' modulus is 0.9982 at $y = 0$, 0.9993 at $|y| = 1.1$ and
+    reaches 1 only at $|y| = \\sqrt 2$. Input: force multisine 0-0.5 Hz
     (0.01 cycles/sample), std 0.3 N; the system starts at rest.
 
     Suggested library: polynomials of degree 3 on ``[y, v, u]`` (20 features); it contains
@@ -321,10 +321,10 @@ def make_duffing_oscillator(
     process_noise_std : float, default=0.0
         Standard deviation (m/s) of a Gaussian disturbance added to the velocity update.
     exponent : float, default=3.0
-        :math:`a` of a spring force :math:`k_3\\, y |y|^{a - 1}` (:math:`k_3 = 1.5` in
-        N/m\\ :sup:`a`): 3 is the cubic spring; another power is one the cubic law only
+        $a$ of a spring force $k_3\\, y |y|^{a - 1}$ ($k_3 = 1.5$ in
+        N/m<sup>a</sup>): 3 is the cubic spring; another power is one the cubic law only
         approximates (the loop must refine its cubic stiffness into
-        :class:`~sk_offwhite.PowerStiffness`). ``hidden_effect["rates"]`` then also holds
+        [`PowerStiffness`][sk_offwhite.PowerStiffness]). ``hidden_effect["rates"]`` then also holds
         ``"exponent"``.
 
     Returns
@@ -337,7 +337,7 @@ def make_duffing_oscillator(
 
 
 def _duffing(exponent: float) -> _Generator:
-    """The Duffing generator with a spring of power ``exponent`` (3: :data:`_DUFFING`)."""
+    """The Duffing generator with a spring of power ``exponent`` (3: `_DUFFING`)."""
     law = f"k3 y|y|^{float(exponent) - 1:g}"
     return _of_power(
         _DUFFING, exponent, (1.0, 3.0, 5.0),
@@ -442,24 +442,24 @@ def make_pendulum_drag(
 ) -> Bunch:
     """Driven pendulum whose physics misses quadratic (aerodynamic) drag.
 
-    True system, one explicit-Euler step of :math:`\\Delta t = 0.005` s per sample:
+    True system, one explicit-Euler step of $\\Delta t = 0.005$ s per sample:
 
-    .. math::
+    $$
+    \\dot\\theta = \\omega, \\qquad
+    \\dot\\omega = -\\frac{g}{l} \\sin\\theta - b\\, \\omega + \\frac{u}{m l^2}
+    - c_d\\, \\omega |\\omega|, \\qquad z = \\theta + \\eta,
+    $$
 
-        \\dot\\theta = \\omega, \\qquad
-        \\dot\\omega = -\\frac{g}{l} \\sin\\theta - b\\, \\omega + \\frac{u}{m l^2}
-        - c_d\\, \\omega |\\omega|, \\qquad z = \\theta + \\eta,
-
-    with :math:`l = 0.5` m, :math:`m = 1` kg, :math:`g = 9.81` m/s², :math:`b = 0.3` 1/s
-    and :math:`c_d = 0.3` 1/rad (angle in rad, rate in rad/s, torque ``u`` in N m). The
-    physics' parameters are ``g_over_l`` :math:`= g/l = 19.62` 1/s², ``b`` and ``gain``
-    :math:`= 1/(m l^2) = 4` 1/(kg m²). The hidden effect
-    :math:`-\\Delta t\\, c_d\\, \\omega |\\omega|` enters the rate equation (index 1, sign
+    with $l = 0.5$ m, $m = 1$ kg, $g = 9.81$ m/s², $b = 0.3$ 1/s
+    and $c_d = 0.3$ 1/rad (angle in rad, rate in rad/s, torque ``u`` in N m). The
+    physics' parameters are ``g_over_l`` $= g/l = 19.62$ 1/s², ``b`` and ``gain``
+    $= 1/(m l^2) = 4$ 1/(kg m²). The hidden effect
+    $-\\Delta t\\, c_d\\, \\omega |\\omega|$ enters the rate equation (index 1, sign
     -1); ``hidden_effect["rates"]`` is ``{"quadratic_drag": cd}`` (1/rad). Euler is stable
-    for the linearised pendulum when :math:`b > \\Delta t\\, g / l = 0.098` 1/s (eigenvalues'
-    modulus 0.9995 with :math:`b = 0.3`); the drag only adds damping. Input: torque
+    for the linearised pendulum when $b > \\Delta t\\, g / l = 0.098$ 1/s (eigenvalues'
+    modulus 0.9995 with $b = 0.3$); the drag only adds damping. Input: torque
     multisine 0-1.5 Hz (0.0075 cycles/sample) around the 0.7 Hz natural frequency, std
-    1 N m; :math:`|\\theta|` stays below about 1 rad and :math:`|\\omega|` below about
+    1 N m; $|\\theta|$ stays below about 1 rad and $|\\omega|$ below about
     5 rad/s (no full rotations). The pendulum starts hanging at rest.
 
     Suggested library: polynomials of degree 3 plus the signed square ``a |a|`` on
@@ -477,10 +477,10 @@ def make_pendulum_drag(
     process_noise_std : float, default=0.0
         Standard deviation (rad/s) of a Gaussian disturbance added to the rate update.
     exponent : float, default=2.0
-        :math:`a` of a drag :math:`-c_d\\, \\omega |\\omega|^{a - 1}` (:math:`c_d = 0.3`
-        in rad\\ :sup:`1-a` s\\ :sup:`a-2`): 2 is the quadratic drag; between 1 and 2 a drag
+        $a$ of a drag $-c_d\\, \\omega |\\omega|^{a - 1}$ ($c_d = 0.3$
+        in rad<sup>1-a</sup> s<sup>a-2</sup>): 2 is the quadratic drag; between 1 and 2 a drag
         the quadratic law only approximates (the loop must refine its quadratic drag into
-        :class:`~sk_offwhite.PowerDrag`). ``hidden_effect["rates"]`` then also holds
+        [`PowerDrag`][sk_offwhite.PowerDrag]). ``hidden_effect["rates"]`` then also holds
         ``"exponent"``.
 
     Returns
@@ -493,7 +493,7 @@ def make_pendulum_drag(
 
 
 def _pendulum(exponent: float) -> _Generator:
-    """The pendulum's generator with a drag of power ``exponent`` (2: :data:`_PENDULUM`)."""
+    """The pendulum's generator with a drag of power ``exponent`` (2: `_PENDULUM`)."""
     power = f"{float(exponent) - 1:g}"
     descr = (
         _PENDULUM.system.descr.replace("cd theta'|theta'|", f"cd theta'|theta'|^{power}")
@@ -561,21 +561,21 @@ def make_dead_zone_motor(
 ) -> Bunch:
     """First-order motor whose physics assumes a linear drive that has a dead zone.
 
-    True system, one explicit-Euler step of :math:`\\Delta t = 0.05` s per sample:
+    True system, one explicit-Euler step of $\\Delta t = 0.05$ s per sample:
 
-    .. math::
+    $$
+    \\dot\\omega = -a \\omega + b\\, \\mathrm{dz}(u), \\qquad
+    \\mathrm{dz}(u) = \\mathrm{sign}(u) \\max(|u| - w, 0), \\qquad z = \\omega + \\eta,
+    $$
 
-        \\dot\\omega = -a \\omega + b\\, \\mathrm{dz}(u), \\qquad
-        \\mathrm{dz}(u) = \\mathrm{sign}(u) \\max(|u| - w, 0), \\qquad z = \\omega + \\eta,
-
-    with :math:`a = 2` 1/s, :math:`b = 4` rad/(V s²) and :math:`w = 0.3` V (speed in rad/s,
-    voltage ``u`` in V); the physics uses :math:`b u`. The hidden effect
-    :math:`\\Delta t\\, b (\\mathrm{dz}(u) - u) = -\\Delta t\\, b\\, \\mathrm{clip}(u, -w, w)`
+    with $a = 2$ 1/s, $b = 4$ rad/(V s²) and $w = 0.3$ V (speed in rad/s,
+    voltage ``u`` in V); the physics uses $b u$. The hidden effect
+    $\\Delta t\\, b (\\mathrm{dz}(u) - u) = -\\Delta t\\, b\\, \\mathrm{clip}(u, -w, w)$
     depends on ``u`` only (sign -1: the drive is weaker than linear);
     ``hidden_effect["rates"]`` is ``{"dead_zone": w, "gain": b}``, so that the rate is
     ``-gain * clip(u, -dead_zone, dead_zone)`` (rad/s²). Euler is stable:
-    :math:`|1 - a \\Delta t| = 0.9`. Input: zero-mean multisine 0-0.6 Hz
-    (0.03 cycles/sample) with std 0.8 V, so that :math:`|u|` is inside the dead zone about
+    $|1 - a \\Delta t| = 0.9$. Input: zero-mean multisine 0-0.6 Hz
+    (0.03 cycles/sample) with std 0.8 V, so that $|u|$ is inside the dead zone about
     30 % of the time.
 
     Suggested library: polynomials of degree 3 on ``[omega, u]`` (10 features); it only

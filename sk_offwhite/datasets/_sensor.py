@@ -30,22 +30,22 @@ SENSOR_LAG = 4.0
 
 
 def sensor_reading(level, curvature: float = SENSOR_CURVATURE, cubic: float = 0.0):
-    """What the sensor reads at ``level``: :math:`x + q x^2 + r x^3` (``cubic``: :math:`r`)."""
+    """What the sensor reads at ``level``: $x + q x^2 + r x^3$ (``cubic``: $r$)."""
     return level + curvature * level**2 + cubic * level**3
 
 
 def stepped_reading(level, step_level: float = STEP_LEVEL, step_height: float = STEP_HEIGHT):
-    r"""What a sensor with a seam reads at ``level``: :math:`x + H\,[x > L]`."""
+    r"""What a sensor with a seam reads at ``level``: $x + H\,[x > L]$."""
     return level + step_height * (np.asarray(level) > step_level)
 
 
 def lagged_reading(level, time_constant: float = SENSOR_LAG, sampling_time: float = SENSOR_DT):
-    r"""What a sensor with a first-order lag of time constant :math:`\tau` reads of the
+    r"""What a sensor with a first-order lag of time constant $\tau$ reads of the
     sampled ``level`` (1-D, or one column), the level linear over each sample and the
     sensor settled at the first level:
-    :math:`s_{k+1} = s_k + \alpha (x_k - s_k) + \beta (x_{k+1} - x_k)` with
-    :math:`\alpha = 1 - e^{-T_s/\tau}` and :math:`\beta = 1 - \alpha\tau/T_s`
-    (:class:`~sk_offwhite.SensorLag`'s law)."""
+    $s_{k+1} = s_k + \alpha (x_k - s_k) + \beta (x_{k+1} - x_k)$ with
+    $\alpha = 1 - e^{-T_s/\tau}$ and $\beta = 1 - \alpha\tau/T_s$
+    ([`SensorLag`][sk_offwhite.SensorLag]'s law)."""
     level = np.asarray(level, dtype=np.float64)
     samples = level.reshape(len(level))
     reading = np.empty_like(samples)
@@ -96,20 +96,20 @@ def make_nonlinear_sensor_tank(
 ) -> Bunch:
     """Single tank read by a level sensor whose characteristic is not linear.
 
-    True system, one explicit-Euler step of :math:`\\Delta t = 1` s per sample:
+    True system, one explicit-Euler step of $\\Delta t = 1$ s per sample:
 
-    .. math::
+    $$
+    \\dot x = -k \\sqrt{x} + b u, \\qquad z = x + q x^2 + r x^3 + \\eta,
+    $$
 
-        \\dot x = -k \\sqrt{x} + b u, \\qquad z = x + q x^2 + r x^3 + \\eta,
-
-    with :math:`k = 0.5`, :math:`b = 0.5` (the pump gain, known: fixed in the declared
-    physics), :math:`q = 0.04`, :math:`r` = ``cubic`` (0 by default: a quadratic
-    characteristic, which the loop's calibration of degree 2 holds) and :math:`x(0) = 4`.
-    The physics reads the level as it is (:math:`z = x`); the missing effect is static and
+    with $k = 0.5$, $b = 0.5$ (the pump gain, known: fixed in the declared
+    physics), $q = 0.04$, $r$ = ``cubic`` (0 by default: a quadratic
+    characteristic, which the loop's calibration of degree 2 holds) and $x(0) = 4$.
+    The physics reads the level as it is ($z = x$); the missing effect is static and
     in the output map, so no term of the state equations can stand for it exactly.
-    ``hidden_effect["rates"]`` is ``{"curvature": q, "cubic": r}``; :func:`sensor_reading`
-    is the true characteristic. Input: pump flow, multisine 0-0.02 cycles/sample, mean 2,
-    std 0.6, clipped at 0 (levels about 0-12).
+    ``hidden_effect["rates"]`` is ``{"curvature": q, "cubic": r}``;
+    [`sensor_reading`][sk_offwhite.datasets.sensor_reading] is the true characteristic. Input: pump
+    flow, multisine 0-0.02 cycles/sample, mean 2, std 0.6, clipped at 0 (levels about 0-12).
     Suggested library: polynomials of degree 2 on ``[x, u]``.
 
     Parameters
@@ -123,7 +123,7 @@ def make_nonlinear_sensor_tank(
     process_noise_std : float, default=0.0
         Standard deviation of a Gaussian disturbance added to the level update.
     cubic : float, default=0.0
-        :math:`r`, the characteristic's cubic coefficient (per level unit squared):
+        $r$, the characteristic's cubic coefficient (per level unit squared):
         with 0.004 the reading at the top level (12) is 6.9 above the level, and a
         calibration of degree 2 leaves a curve the noise does not hide.
 
@@ -158,20 +158,20 @@ def make_stepped_sensor_tank(
 ) -> Bunch:
     """Single tank read by a level sensor whose reading steps where the level passes a value.
 
-    True system, one explicit-Euler step of :math:`\\Delta t = 1` s per sample:
+    True system, one explicit-Euler step of $\\Delta t = 1$ s per sample:
 
-    .. math::
+    $$
+    \\dot x = -k \\sqrt{x} + b u, \\qquad z = x + H\\,[x > L] + \\eta,
+    $$
 
-        \\dot x = -k \\sqrt{x} + b u, \\qquad z = x + H\\,[x > L] + \\eta,
-
-    with :math:`k = 0.5`, :math:`b = 0.5` (the pump gain, known: fixed in the declared
-    physics), :math:`L = 5`, :math:`H = 0.4` and :math:`x(0) = 4`: a seam in the sensor
-    (a capacitive strip in two pieces) makes the reading jump by :math:`H` each time the
-    level passes :math:`L`, up as it rises and down as it falls. The physics reads the level
-    as it is (:math:`z = x`); the missing effect is static, discontinuous and in the output
+    with $k = 0.5$, $b = 0.5$ (the pump gain, known: fixed in the declared
+    physics), $L = 5$, $H = 0.4$ and $x(0) = 4$: a seam in the sensor
+    (a capacitive strip in two pieces) makes the reading jump by $H$ each time the
+    level passes $L$, up as it rises and down as it falls. The physics reads the level
+    as it is ($z = x$); the missing effect is static, discontinuous and in the output
     map. ``hidden_effect["rates"]`` is ``{"step_level": L, "step_height": H}``;
-    :func:`stepped_reading` is the true characteristic. Input: pump flow, multisine
-    0-0.02 cycles/sample, mean 2, std 0.6, clipped at 0 (levels about 0-12).
+    [`stepped_reading`][sk_offwhite.datasets.stepped_reading] is the true characteristic. Input:
+    pump flow, multisine 0-0.02 cycles/sample, mean 2, std 0.6, clipped at 0 (levels about 0-12).
     Suggested library: polynomials of degree 2 on ``[x, u]``.
 
     Parameters
@@ -211,18 +211,18 @@ def make_slow_sensor_tank(
 ) -> Bunch:
     """Single tank read by a level sensor that lags the level (sensor dynamics).
 
-    True system, one explicit-Euler step of :math:`\\Delta t = 1` s per sample:
+    True system, one explicit-Euler step of $\\Delta t = 1$ s per sample:
 
-    .. math::
+    $$
+    \\dot x = -k \\sqrt{x} + b u, \\qquad \\tau \\dot s = x - s, \\qquad z = s + \\eta,
+    $$
 
-        \\dot x = -k \\sqrt{x} + b u, \\qquad \\tau \\dot s = x - s, \\qquad z = s + \\eta,
-
-    with :math:`k = 0.5`, :math:`b = 0.5` (the pump gain, known: fixed in the declared
-    physics), :math:`x(0) = 4` and :math:`\\tau` = ``time_constant`` (4 s by default,
+    with $k = 0.5$, $b = 0.5$ (the pump gain, known: fixed in the declared
+    physics), $x(0) = 4$ and $\\tau$ = ``time_constant`` (4 s by default,
     four samples: a damped pressure transducer, a float in a stilling well), the level
-    taken linear over each sample (:func:`lagged_reading`) and the sensor settled at the
-    first level. The physics reads the level as it is (:math:`z = x`); the missing effect
-    has memory and sits in the measurement, not in the tank. The outlet's square root
+    taken linear over each sample ([`lagged_reading`][sk_offwhite.datasets.lagged_reading]) and the
+    sensor settled at the first level. The physics reads the level as it is ($z = x$); the missing
+    effect has memory and sits in the measurement, not in the tank. The outlet's square root
     tells it apart from a lag of the pump, which a linear tank would not (a lag commutes
     with a linear plant). ``hidden_effect["rates"]`` is ``{"time_constant": τ}``. Input:
     pump flow, multisine 0-0.02 cycles/sample, mean 2, std 0.6, clipped at 0 (levels
@@ -239,12 +239,12 @@ def make_slow_sensor_tank(
     process_noise_std : float, default=0.0
         Standard deviation of a Gaussian disturbance added to the level update.
     time_constant : float, default=4.0
-        The sensor's time constant :math:`\\tau` in seconds.
+        The sensor's time constant $\\tau$ in seconds.
 
     Returns
     -------
     data : sklearn.utils.Bunch
-        As :func:`make_nonlinear_sensor_tank`.
+        As [`make_nonlinear_sensor_tank`][sk_offwhite.datasets.make_nonlinear_sensor_tank].
     """
     time_constant = checked_positive(time_constant, "time_constant")
     hidden = {

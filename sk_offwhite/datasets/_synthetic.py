@@ -3,14 +3,14 @@
 Every generator returns an estimation record and an independent validation record of a
 *true* discrete-time system
 
-.. math::
+$$
+x_{k+1} = f(x_k, u_k; \\bar\\theta) + \\Delta(x_k, u_k) + w_k, \\qquad
+z_k = h(x_k) + e_k,
+$$
 
-    x_{k+1} = f(x_k, u_k; \\bar\\theta) + \\Delta(x_k, u_k) + w_k, \\qquad
-    z_k = h(x_k) + e_k,
-
-together with the incomplete :class:`~sk_offwhite._physics.PhysicsModel` a user would
+together with the incomplete `PhysicsModel` a user would
 write (``f`` and ``h`` only, parameters at a plausible guess), the true parameters, a
-description of the hidden effect :math:`\\Delta` and a small pysindy library able to
+description of the hidden effect $\\Delta$ and a small pysindy library able to
 represent (or approximate) it. The records are simulated in float64 with the physics' own
 ``step`` (jitted under a local ``jax.enable_x64``), so that with ``w = 0``
 
@@ -171,18 +171,19 @@ def make_cascaded_tanks(
 ) -> Bunch:
     """Cascaded tanks of eq. (21) with the overflow and saturation the physics omits.
 
-    True system (Euler step of :func:`~sk_offwhite.datasets.cascaded_tanks_physics`,
-    :math:`T_s = 4` s, :math:`k = [0.1, 0.075, 0.07, 0.088]`):
+    True system (Euler step of
+    [`cascaded_tanks_physics`][sk_offwhite.datasets.cascaded_tanks_physics], $T_s = 4$ s, $k = [0.1,
+    0.075, 0.07, 0.088]$):
 
-    .. math::
+    $$
+    \\tilde x_{k+1} &= f(x_k, u_k; k) + w_k, \\qquad
+    o_k = \\max(\\tilde x_{1,k+1} - 10,\\ 0), \\\\
+    x_{1,k+1} &= \\tilde x_{1,k+1} - o_k, \\qquad
+    x_{2,k+1} = \\min(\\tilde x_{2,k+1} + \\rho o_k,\\ 10), \\\\
+    z_k &= \\min(x_{2,k} + \\eta_k,\\ 10),
+    $$
 
-        \\tilde x_{k+1} &= f(x_k, u_k; k) + w_k, \\qquad
-        o_k = \\max(\\tilde x_{1,k+1} - 10,\\ 0), \\\\
-        x_{1,k+1} &= \\tilde x_{1,k+1} - o_k, \\qquad
-        x_{2,k+1} = \\min(\\tilde x_{2,k+1} + \\rho o_k,\\ 10), \\\\
-        z_k &= \\min(x_{2,k} + \\eta_k,\\ 10),
-
-    with spill fraction :math:`\\rho` = ``overflow_fraction``. The levels were chosen (the
+    with spill fraction $\\rho$ = ``overflow_fraction``. The levels were chosen (the
     paper's identified ``k = [0.076, 0.027, 0.042, 0.039]`` never reach 10 with the benchmark
     input) so that both limits act, on a few percent of the samples each.
 
@@ -212,8 +213,8 @@ def make_cascaded_tanks(
     data : sklearn.utils.Bunch
         ``u, z, u_val, z_val, x, x_val, physics, true_parameters, true_x0, true_x0_val,
         hidden_effect, suggested_library, noise, sampling_time, saturation_level, DESCR``.
-        ``physics`` is :func:`cascaded_tanks_physics` with ``k_init = 0.05`` and
-        ``x0 = [z0, z0]`` (the paper's initialisation).
+        ``physics`` is [`cascaded_tanks_physics`][sk_offwhite.datasets.cascaded_tanks_physics] with
+        ``k_init = 0.05`` and ``x0 = [z0, z0]`` (the paper's initialisation).
     """
     n = _check_n_samples(n_samples)
     stds = (
@@ -283,7 +284,8 @@ def _tanks_library():
 FRICTION_THETA = {"m": 1.0, "k": 4.0, "c": 0.4}
 FRICTION_FC, FRICTION_EPS, FRICTION_DT = 0.5, 0.1, 0.05
 FRICTION_VS = 0.3
-"""The Stribeck velocity of :func:`make_friction_oscillator` (about 20 % of the
+"""The Stribeck velocity of
+[`make_friction_oscillator`][sk_offwhite.datasets.make_friction_oscillator] (about 20 % of the
 velocity's RMS)."""
 
 
@@ -295,7 +297,7 @@ def oscillator_rhs(x, u, theta):
 
 def _friction_effect(x, u, fc, eps, m, dt, stribeck=0.0):
     """``[0, -dt (Fc + Fs exp(-(v / vs)^2)) tanh(v / eps) / m]`` (numpy; Fs = ``stribeck``,
-    vs = :data:`FRICTION_VS`)."""
+    vs = `FRICTION_VS`)."""
     v = x[..., 1]
     level = fc if stribeck == 0.0 else fc + stribeck * np.exp(-((v / FRICTION_VS) ** 2))
     drag = -dt * level * np.tanh(v / eps) / m
@@ -320,17 +322,17 @@ def make_friction_oscillator(
 ) -> Bunch:
     """Mass-spring-damper whose physics misses Coulomb friction.
 
-    True system, one explicit-Euler step of :math:`\\Delta t = 0.05` s per sample
+    True system, one explicit-Euler step of $\\Delta t = 0.05$ s per sample
     (``PhysicsModel.from_ode(..., method="euler")``):
 
-    .. math::
+    $$
+    \\dot x = v, \\qquad
+    m \\dot v = u - k x - c v - F_c \\tanh(v / \\varepsilon), \\qquad z = x + \\eta,
+    $$
 
-        \\dot x = v, \\qquad
-        m \\dot v = u - k x - c v - F_c \\tanh(v / \\varepsilon), \\qquad z = x + \\eta,
-
-    with :math:`m = 1, k = 4, c = 0.4, F_c = 0.5, \\varepsilon = 0.1`. The physics omits the
+    with $m = 1, k = 4, c = 0.4, F_c = 0.5, \\varepsilon = 0.1$. The physics omits the
     friction; in discrete time the hidden effect is exactly
-    :math:`-\\Delta t F_c \\tanh(v/\\varepsilon) / m` in the velocity equation (index 1).
+    $-\\Delta t F_c \\tanh(v/\\varepsilon) / m$ in the velocity equation (index 1).
     Euler is used so that the effect stays additive and inside ``suggested_library``
     (polynomials of degree 2 plus ``tanh(10 .)`` on ``[x, v, u]``, 13 features). Input: force
     multisine 0-0.05 cycles/sample, std 2 N; the system starts at rest.
@@ -347,9 +349,9 @@ def make_friction_oscillator(
     process_noise_std : float, default=0.0
         Standard deviation of a Gaussian disturbance added to the velocity update.
     stribeck : float, default=0.0
-        :math:`F_s \\ge 0`: the friction level rises to :math:`F_c + F_s` near rest,
-        :math:`(F_c + F_s e^{-(v/v_s)^2}) \\tanh(v/\\varepsilon)` with :math:`v_s = 0.3`
-        (:data:`FRICTION_VS`), a Stribeck friction (the loop must refine its Coulomb
+        $F_s \\ge 0$: the friction level rises to $F_c + F_s$ near rest,
+        $(F_c + F_s e^{-(v/v_s)^2}) \\tanh(v/\\varepsilon)$ with $v_s = 0.3$
+        (`FRICTION_VS`), a Stribeck friction (the loop must refine its Coulomb
         friction into the Stribeck one). ``hidden_effect["rates"]`` then holds
         ``{"coulomb": 0.5, "stribeck": Fs, "stribeck_velocity": 0.3}``.
 
@@ -371,7 +373,7 @@ def make_friction_oscillator(
 
 def _friction_system(stribeck: float) -> tuple:
     """The friction oscillator's system with a Stribeck level ``stribeck`` (0: the
-    Coulomb friction, :data:`_FRICTION_SYSTEM`) and the rates to report (none for 0)."""
+    Coulomb friction, `_FRICTION_SYSTEM`) and the rates to report (none for 0)."""
     stribeck = float(stribeck)
     if not (np.isfinite(stribeck) and stribeck >= 0):
         raise ValueError(f"stribeck must be finite and >= 0, got {stribeck!r}.")
@@ -510,17 +512,17 @@ def make_saturating_actuator(
 ) -> Bunch:
     """First-order motor whose physics assumes a linear actuator that actually saturates.
 
-    True system, one explicit-Euler step of :math:`\\Delta t = 0.05` s per sample:
+    True system, one explicit-Euler step of $\\Delta t = 0.05$ s per sample:
 
-    .. math::
+    $$
+    \\dot\\omega = -a \\omega + b\\, u_{\\max} \\tanh(u / u_{\\max}), \\qquad
+    z = \\omega + \\eta,
+    $$
 
-        \\dot\\omega = -a \\omega + b\\, u_{\\max} \\tanh(u / u_{\\max}), \\qquad
-        z = \\omega + \\eta,
-
-    with :math:`a = 2, b = 4, u_{\\max} = 1`; the physics uses :math:`b u`. The hidden
-    effect :math:`\\Delta t\\, b (u_{\\max} \\tanh(u/u_{\\max}) - u)` depends on ``u`` only and
-    is smaller than linear at large :math:`|u|` (sign -1). Input: multisine 0-0.03
-    cycles/sample with std 0.8 (:math:`|u|` reaches about :math:`2 u_{\\max}`).
+    with $a = 2, b = 4, u_{\\max} = 1$; the physics uses $b u$. The hidden
+    effect $\\Delta t\\, b (u_{\\max} \\tanh(u/u_{\\max}) - u)$ depends on ``u`` only and
+    is smaller than linear at large $|u|$ (sign -1). Input: multisine 0-0.03
+    cycles/sample with std 0.8 ($|u|$ reaches about $2 u_{\\max}$).
 
     Suggested library: polynomials of degree 3 plus the signed square ``a |a|`` on
     ``[omega, u]`` (12 features); it approximates the effect (least squares explains about
@@ -608,18 +610,18 @@ def make_leaky_tank(
 ) -> Bunch:
     """Single tank whose physics misses a leak.
 
-    True system, one explicit-Euler step of :math:`\\Delta t = 1` s per sample:
+    True system, one explicit-Euler step of $\\Delta t = 1$ s per sample:
 
-    .. math::
+    $$
+    \\dot x = -k \\sqrt{x} + b u - c x, \\qquad z = x + \\eta,
+    $$
 
-        \\dot x = -k \\sqrt{x} + b u - c x, \\qquad z = x + \\eta,
-
-    with :math:`k = 0.5, b = 0.5, c = 0.05` and :math:`x(0) = 4`. The physics omits the
-    leak :math:`-c x` (a seepage proportional to the level, which a re-fitted outlet
+    with $k = 0.5, b = 0.5, c = 0.05$ and $x(0) = 4$. The physics omits the
+    leak $-c x$ (a seepage proportional to the level, which a re-fitted outlet
     coefficient ``k`` cannot mimic); in discrete time the hidden effect is exactly
-    :math:`-\\Delta t\\, c\\, x` (sign -1). Input: pump flow, multisine 0-0.02 cycles/sample,
+    $-\\Delta t\\, c\\, x$ (sign -1). Input: pump flow, multisine 0-0.02 cycles/sample,
     mean 2, std 0.6, clipped at 0. Suggested library: polynomials of degree 2 on ``[x, u]``
-    (6 features). Square roots use :func:`~sk_offwhite.datasets.safe_sqrt`.
+    (6 features). Square roots use [`safe_sqrt`][sk_offwhite.datasets.safe_sqrt].
 
     Parameters
     ----------

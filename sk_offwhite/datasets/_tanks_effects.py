@@ -4,9 +4,9 @@ The benchmark note (Schoukens et al. 2016) names the hard nonlinearities that th
 model omits: the upper tank overflows (partly into the lower tank, partly back to the
 reservoir) and the lower tank / its sensor saturates at 10 V. The lower-tank sensor is
 uncalibrated, so its zero need not be the outlet level, and its reading need not be
-proportional to the level. :func:`tanks_effects_physics` builds a
-:class:`~sk_offwhite.PhysicsModel` with any subset of these effects, each with named physical
-parameters, written with ``jax.numpy`` and smooth (softplus hinges) so that the simulation
+proportional to the level. `tanks_effects_physics` builds a
+[`PhysicsModel`][sk_offwhite.PhysicsModel] with any subset of these effects, each with named
+physical parameters, written with ``jax.numpy`` and smooth (softplus hinges) so that the simulation
 error stays differentiable.
 """
 
@@ -38,7 +38,7 @@ EFFECTS = (
     "pump_threshold",
     "upper_exponent",
 )
-"""Effects that :func:`tanks_effects_physics` can add to eq. (21):
+"""Effects that `tanks_effects_physics` can add to eq. (21):
 
 * ``"overflow"``: the upper-tank level cannot exceed ``h_max``; the excess leaves the upper
   tank and a part of it, ``k_overflow`` (in lower-tank sensor volts per unit of ``x1``),
@@ -106,15 +106,15 @@ class TanksEffectsStep:
     r"""One sample of the augmented tanks model (picklable, compared by value).
 
     ``n_substeps`` explicit-Euler sub-steps of eq. (21), each followed by the limits; with
-    :math:`r(a) = \max(a, 10^{-6})^{a_1}` (:math:`a_1 = 1/2`: Torricelli),
-    :math:`g(a) = \max(a, 10^{-6})^{a_2}` and the pump flow :math:`p(u)`:
+    $r(a) = \max(a, 10^{-6})^{a_1}$ ($a_1 = 1/2$: Torricelli),
+    $g(a) = \max(a, 10^{-6})^{a_2}$ and the pump flow $p(u)$:
 
-    .. math::
-
-        \tilde x_1 &= x_1 + \Delta t(-k_1 r(x_1) + k_4 p(u)), \qquad
-        o = \mathrm{hinge}(\tilde x_1 - h_{max}), \qquad x_1^+ = \tilde x_1 - o, \\
-        \tilde x_2 &= x_2 + \Delta t(k_2 r(x_1) - k_3 g(x_2 - z_{out}))
-        + k_{overflow}\, o, \qquad x_2^+ = \mathrm{softmin}(\tilde x_2, x_{2,max}).
+    $$
+    \tilde x_1 &= x_1 + \Delta t(-k_1 r(x_1) + k_4 p(u)), \qquad
+    o = \mathrm{hinge}(\tilde x_1 - h_{max}), \qquad x_1^+ = \tilde x_1 - o, \\
+    \tilde x_2 &= x_2 + \Delta t(k_2 r(x_1) - k_3 g(x_2 - z_{out}))
+    + k_{overflow}\, o, \qquad x_2^+ = \mathrm{softmin}(\tilde x_2, x_{2,max}).
+    $$
 
     Effects that are not selected drop out (``o = 0``, ``z_out = 0``, ``a1 = a2 = 1/2``,
     ``p(u) = u``, no cap).
@@ -234,7 +234,7 @@ def tanks_effects_physics(
     sampling_time: float = SAMPLING_TIME,
     level: float = SATURATION_LEVEL,
 ) -> PhysicsModel:
-    """Cascaded Tanks model of eq. (21) with the selected effects of :data:`EFFECTS`.
+    """Cascaded Tanks model of eq. (21) with the selected effects of `EFFECTS`.
 
     Parameters
     ----------
@@ -263,7 +263,7 @@ def tanks_effects_physics(
     -------
     PhysicsModel
         States ``("x1", "x2")``, input ``"u"``, output ``"x2"``, parameters ``k1..k4`` then
-        those of the effects in the order of :data:`EFFECTS`.
+        those of the effects in the order of `EFFECTS`.
 
     Examples
     --------

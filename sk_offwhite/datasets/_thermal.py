@@ -1,6 +1,6 @@
 """Synthetic thermal systems whose declared physics misses one effect.
 
-Same conventions as :mod:`sk_offwhite.datasets._mechanical`: one explicit-Euler step of the
+Same conventions as `sk_offwhite.datasets._mechanical`: one explicit-Euler step of the
 declared physics per sample plus an additive hidden effect on the temperature equation, in
 SI units (kelvin, watts, joules per kelvin, seconds). Temperatures are absolute, so the
 data sit far from zero (305–317 K): what the package derives from the data's scale is
@@ -27,12 +27,12 @@ HEATER_LIMIT, HEATER_DT = 60.0, 2.0
 HEATER_MEAN, HEATER_STD = 45.0, 25.0
 CONVECTION_REFERENCE = 10.0
 r"""The temperature excess (K) at which the convective block's loss law of any exponent
-conducts :math:`G\,\Delta T`: the conductance keeps its meaning whatever the exponent."""
+conducts $G\,\Delta T$: the conductance keeps its meaning whatever the exponent."""
 LOSS_EXPONENT_BOUNDS = (0.5, 3.0)
 
 
 def heated_block_rhs(x, u, theta):
-    r""":math:`\dot T = (P - G\,(T - T_a)) / C`: heater power in, conduction to ambient out."""
+    r"""$\dot T = (P - G\,(T - T_a)) / C$: heater power in, conduction to ambient out."""
     loss = theta["conductance"] * (x[0] - theta["ambient"])
     return (u[0] - loss)[None] / theta["capacity"]
 
@@ -92,19 +92,19 @@ def make_heated_block(
 ) -> Bunch:
     r"""A heated block whose physics assumes the heater delivers the commanded power.
 
-    True system, one explicit-Euler step of :math:`\Delta t = 2` s per sample:
+    True system, one explicit-Euler step of $\Delta t = 2$ s per sample:
 
-    .. math::
+    $$
+    C\,\dot T = \min(P, P_{max}) - G\,(T - T_a), \qquad z = T + \eta,
+    $$
 
-        C\,\dot T = \min(P, P_{max}) - G\,(T - T_a), \qquad z = T + \eta,
-
-    with :math:`C = 800` J/K, :math:`G = 2.5` W/K, :math:`T_a = 295` K and
-    :math:`P_{max} = 60` W (temperature in K, commanded power ``P`` in W); the physics uses
-    :math:`P` and fits :math:`C`, :math:`G` and :math:`T_a`. The hidden effect
-    :math:`-\Delta t\,\max(P - P_{max}, 0)/C` enters the temperature equation (sign -1: the
+    with $C = 800$ J/K, $G = 2.5$ W/K, $T_a = 295$ K and
+    $P_{max} = 60$ W (temperature in K, commanded power ``P`` in W); the physics uses
+    $P$ and fits $C$, $G$ and $T_a$. The hidden effect
+    $-\Delta t\,\max(P - P_{max}, 0)/C$ enters the temperature equation (sign -1: the
     heater delivers less than commanded); ``hidden_effect["rates"]`` is
     ``{"limit": 60.0, "capacity": 800.0}``. A hard limit, not a soft (``tanh``) saturation:
-    the power passes unchanged below 60 W. Time constant :math:`C/G = 320` s (160 samples).
+    the power passes unchanged below 60 W. Time constant $C/G = 320$ s (160 samples).
     Input: multisine 0-0.01 cycles/sample with mean 45 W and standard deviation 25 W,
     floored at 0 W (a heater does not cool), so that it exceeds the limit about a quarter
     of the time. The block starts at its steady state for the mean power.
@@ -134,9 +134,9 @@ def make_heated_block(
 
 
 def convective_block_rhs(x, u, theta):
-    r""":math:`\dot T = (P - G\,\Delta_r\,\mathrm{sign}(\Delta)|\Delta/\Delta_r|^{a}) / C`,
-    :math:`\Delta = T - T_a`, :math:`\Delta_r` = :data:`CONVECTION_REFERENCE`, :math:`a`
-    = ``theta["loss_exponent"]``: Newton's law of cooling at :math:`a = 1`."""
+    r"""$\dot T = (P - G\,\Delta_r\,\mathrm{sign}(\Delta)|\Delta/\Delta_r|^{a}) / C$,
+    $\Delta = T - T_a$, $\Delta_r$ = `CONVECTION_REFERENCE`, $a$
+    = ``theta["loss_exponent"]``: Newton's law of cooling at $a = 1$."""
     excess = x[0] - theta["ambient"]
     power = signed_power(excess, CONVECTION_REFERENCE, 1, theta["loss_exponent"])
     return (u[0] - theta["conductance"] * power)[None] / theta["capacity"]
@@ -198,29 +198,30 @@ def make_convective_block(
     r"""A heated block whose physics assumes Newton's law of cooling; it loses heat by
     natural convection.
 
-    True system, one explicit-Euler step of :math:`\Delta t = 2` s per sample:
+    True system, one explicit-Euler step of $\Delta t = 2$ s per sample:
 
-    .. math::
+    $$
+    C\,\dot T = P - G\,\Delta_r \,\mathrm{sign}(\Delta)
+    \left|\frac{\Delta}{\Delta_r}\right|^{a}, \qquad \Delta = T - T_a,
+    \qquad z = T + \eta,
+    $$
 
-        C\,\dot T = P - G\,\Delta_r \,\mathrm{sign}(\Delta)
-        \left|\frac{\Delta}{\Delta_r}\right|^{a}, \qquad \Delta = T - T_a,
-        \qquad z = T + \eta,
-
-    with :math:`C = 800` J/K, :math:`G = 2.5` W/K, :math:`T_a = 295` K, :math:`\Delta_r =
-    10` K (:data:`CONVECTION_REFERENCE`) and :math:`a` = ``exponent`` (4/3: turbulent
-    natural convection, a heat-transfer coefficient growing as :math:`\Delta^{1/3}`; 5/4
-    laminar). The physics declares :math:`a = 1` and fits :math:`C`, :math:`G` and
-    :math:`T_a`. The hidden effect, the convective loss less the linear one, enters the
+    with $C = 800$ J/K, $G = 2.5$ W/K, $T_a = 295$ K, $\Delta_r =
+    10$ K (`CONVECTION_REFERENCE`) and $a$ = ``exponent`` (4/3: turbulent
+    natural convection, a heat-transfer coefficient growing as $\Delta^{1/3}$; 5/4
+    laminar). The physics declares $a = 1$ and fits $C$, $G$ and
+    $T_a$. The hidden effect, the convective loss less the linear one, enters the
     temperature equation; ``hidden_effect["rates"]`` holds ``exponent`` and the true
-    :math:`C`, :math:`G`, :math:`T_a`. The input and noise are those of
-    :func:`make_heated_block` (the heater is not limited here): temperatures of about
-    303-317 K, 8-22 K above ambient.
+    $C$, $G$, $T_a$. The input and noise are those of
+    [`make_heated_block`][sk_offwhite.datasets.make_heated_block] (the heater is not limited here):
+    temperatures of about 303-317 K, 8-22 K above ambient.
 
     With ``relaxable=True`` the declared law is written with its exponent, a parameter
-    ``loss_exponent`` fixed at 1 and relaxable (:class:`~sk_offwhite.Parameter`), so the
-    closed loop may free it (:class:`~sk_offwhite.RelaxedLaw`); otherwise the physics is
-    :func:`make_heated_block`'s, and the loop can only add a loss on top of the declared
-    linear one (:class:`~sk_offwhite.PowerLoss`, whose fitted law is not the true one).
+    ``loss_exponent`` fixed at 1 and relaxable ([`Parameter`][sk_offwhite.Parameter]), so the
+    closed loop may free it ([`RelaxedLaw`][sk_offwhite.RelaxedLaw]); otherwise the physics is
+    [`make_heated_block`][sk_offwhite.datasets.make_heated_block]'s, and the loop can only add a
+    loss on top of the declared linear one ([`PowerLoss`][sk_offwhite.PowerLoss], whose fitted law
+    is not the true one).
 
     Parameters
     ----------
@@ -231,7 +232,7 @@ def make_convective_block(
     random_state : int, RandomState instance or None, default=None
         Seed of the input and noise realisations.
     exponent : float, default=4/3
-        The true loss law's exponent :math:`a`, in [0.5, 3].
+        The true loss law's exponent $a$, in [0.5, 3].
     relaxable : bool, default=False
         Declare the loss law's exponent (fixed at 1) relaxable.
     process_noise_std : float, default=0.0
@@ -240,7 +241,7 @@ def make_convective_block(
     Returns
     -------
     data : sklearn.utils.Bunch
-        As :func:`make_heated_block`.
+        As [`make_heated_block`][sk_offwhite.datasets.make_heated_block].
     """
     lower, upper = LOSS_EXPONENT_BOUNDS
     if not lower <= exponent <= upper:

@@ -249,31 +249,31 @@ def make_vehicle_lateral(
 
     True system (paper's notation, ``y`` yaw rate, ``s`` steering angle, ``p = 1/v``):
 
-    .. math::
+    $$
+    y_{k+1} &= \\bar\\theta^\\top [y_k,\\ y_{k-1},\\ y_k p_k,\\ s_{k-1} p_{k-1}]
+              + \\Delta_k + \\eta^v_k, \\\\
+    \\Delta_k &= -9.625\\, y_k p_{k-1} + 10.69\\, y_{k-1} p_{k-1}
+                - 11.52\\, y_{k-1} p_{k-1}^2,
+    $$
 
-        y_{k+1} &= \\bar\\theta^\\top [y_k,\\ y_{k-1},\\ y_k p_k,\\ s_{k-1} p_{k-1}]
-                  + \\Delta_k + \\eta^v_k, \\\\
-        \\Delta_k &= -9.625\\, y_k p_{k-1} + 10.69\\, y_{k-1} p_{k-1}
-                    - 11.52\\, y_{k-1} p_{k-1}^2,
+    with $\\bar\\theta = [2, -1.087, -1.070, 3.715]$. State-space recast of the paper:
+    $x_k = [y_k, y_{k-1}, s_k, s_{k-1}, p_k, p_{k-1}]$ and
+    $f(x, u, \\theta) = [\\theta_1 x_1 + \\theta_2 x_2 + \\theta_3 x_1 x_5 +
+    \\theta_4 x_4 x_6,\\ x_1,\\ u_1,\\ x_3,\\ u_2,\\ x_5]$, $z_k = x_{1,k}$, so that
+    $\\Delta_k = -9.625 x_1 x_6 + 10.69 x_2 x_6 - 11.52 x_2 x_6^2$ (equation 0).
 
-    with :math:`\\bar\\theta = [2, -1.087, -1.070, 3.715]`. State-space recast of the paper:
-    :math:`x_k = [y_k, y_{k-1}, s_k, s_{k-1}, p_k, p_{k-1}]` and
-    :math:`f(x, u, \\theta) = [\\theta_1 x_1 + \\theta_2 x_2 + \\theta_3 x_1 x_5 +
-    \\theta_4 x_4 x_6,\\ x_1,\\ u_1,\\ x_3,\\ u_2,\\ x_5]`, :math:`z_k = x_{1,k}`, so that
-    :math:`\\Delta_k = -9.625 x_1 x_6 + 10.69 x_2 x_6 - 11.52 x_2 x_6^2` (equation 0).
-
-    **Index convention.** The paper writes :math:`u_k = [s_k, p_k]`, but then
-    :math:`x_{3,k+1} = u_{1,k}` would hold :math:`s_k` instead of :math:`s_{k+1}`. To keep the
+    **Index convention.** The paper writes $u_k = [s_k, p_k]$, but then
+    $x_{3,k+1} = u_{1,k}$ would hold $s_k$ instead of $s_{k+1}$. To keep the
     paper's state and ``f`` exactly, the input row ``u[k]`` here is
-    :math:`[s_{k+1}, p_{k+1}]`: the steering and inverse speed delivered at step ``k`` and
+    $[s_{k+1}, p_{k+1}]$: the steering and inverse speed delivered at step ``k`` and
     held in the state from ``k+1`` on (``x[k+1, 2] == u[k, 0]``, ``x[k+1, 4] == u[k, 1]``).
 
-    **Stability.** Without ``Delta`` the recursion is unstable for :math:`\\bar\\theta`
-    (:math:`\\theta_2 = -1.087`, the product of the two poles, exceeds 1 in magnitude for
+    **Stability.** Without ``Delta`` the recursion is unstable for $\\bar\\theta$
+    ($\\theta_2 = -1.087$, the product of the two poles, exceeds 1 in magnitude for
     every ``p``): a physics-only simulation with the true parameters diverges (about
-    :math:`10^{38}` after 2000 steps). ``Delta`` changes the :math:`y_{k-1}` coefficient to
-    :math:`-1.087 + 10.69 p - 11.52 p^2` and the :math:`y_k` coefficient to
-    :math:`2 - 10.695 p`, which is stable (frozen-``p`` Jury test) for speeds of about
+    $10^{38}$ after 2000 steps). ``Delta`` changes the $y_{k-1}$ coefficient to
+    $-1.087 + 10.69 p - 11.52 p^2$ and the $y_k$ coefficient to
+    $2 - 10.695 p$, which is stable (frozen-``p`` Jury test) for speeds of about
     4.6-120 m/s; the default speeds are 12-28 m/s. The frozen-``p`` test does not cover a
     fast-varying speed, but the simulated records stay bounded (checked on 40 seeds with the
     default arguments: peak yaw rate at most about 4 standard deviations).
@@ -284,18 +284,18 @@ def make_vehicle_lateral(
     ``speed_range``. A burn-in of 200 samples is simulated from rest and discarded.
     The speed varies much faster than a real vehicle's (it can swing across the whole
     range within about ten samples); this is an excitation choice for identifiability, not
-    a drive cycle. With a slowly varying speed, :math:`p_k \\approx p_{k-1}`: the physical
-    term :math:`\\theta_3 y_k p_k` and the ``Delta`` term :math:`-9.625\\, y_k p_{k-1}` are
+    a drive cycle. With a slowly varying speed, $p_k \\approx p_{k-1}$: the physical
+    term $\\theta_3 y_k p_k$ and the ``Delta`` term $-9.625\\, y_k p_{k-1}$ are
     then collinear (correlation above 0.999999 for a 0-0.002 cycles/sample speed), so
-    :math:`\\theta_3` and :math:`\\bar\\omega_{10}` cannot be told apart and a sparse fit
-    moves the ``Delta`` term into :math:`\\theta_3`.
+    $\\theta_3$ and $\\bar\\omega_{10}$ cannot be told apart and a sparse fit
+    moves the ``Delta`` term into $\\theta_3$.
 
     **Dictionary.** ``suggested_library`` is the paper's 12-function dictionary
-    :math:`\\varphi = [1, x_3, x_4, x_5, x_6, x_3^2, x_4^2, x_5^2, x_4 x_6, x_1 x_6, x_2 x_6,
-    x_2 x_6^2]` as a pysindy ``CustomLibrary`` on ``[x; u]`` (exactly these 12 features);
+    $\\varphi = [1, x_3, x_4, x_5, x_6, x_3^2, x_4^2, x_5^2, x_4 x_6, x_1 x_6, x_2 x_6,
+    x_2 x_6^2]$ as a pysindy ``CustomLibrary`` on ``[x; u]`` (exactly these 12 features);
     ``dictionary_functions`` lists the same terms as ``(name, callable(v))`` on
     ``v = [x; u]``. ``true_omega`` has -9.625, 10.69, -11.52 on the last three entries: the
-    paper lists :math:`\\bar\\omega_{12} = +11.52` but writes ``Delta`` with -11.52; the
+    paper lists $\\bar\\omega_{12} = +11.52$ but writes ``Delta`` with -11.52; the
     ``Delta`` equation is used as the truth here.
 
     Parameters
@@ -303,7 +303,7 @@ def make_vehicle_lateral(
     n_samples : int, default=2000
         Length of each record.
     noise_bound : float, default=0.002
-        Bound of the uniform output noise :math:`\\eta^z` (the yaw rate has a standard
+        Bound of the uniform output noise $\\eta^z$ (the yaw rate has a standard
         deviation of about 0.08).
     random_state : int, RandomState instance or None, default=None
         Seed of the input and noise realisations.
@@ -311,7 +311,7 @@ def make_vehicle_lateral(
         Include ``Delta`` in the true system. ``False`` simulates the physics alone, which
         diverges (a ``RuntimeWarning`` is issued).
     process_noise_bound : float, default=0.0
-        Bound of the uniform noise :math:`\\eta^v` added to the ``y`` recursion.
+        Bound of the uniform noise $\\eta^v$ added to the ``y`` recursion.
     steering_std : float, default=0.05
         Standard deviation of the steering angle (rad).
     speed_range : (float, float), default=(12.0, 28.0)
@@ -388,7 +388,7 @@ def vehicle_physics_known_registers(data) -> PhysicsModel:
     Parameters
     ----------
     data : sklearn.utils.Bunch
-        Output of :func:`make_vehicle_lateral`.
+        Output of [`make_vehicle_lateral`][sk_offwhite.datasets.make_vehicle_lateral].
 
     Returns
     -------

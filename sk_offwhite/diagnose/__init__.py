@@ -3,19 +3,22 @@
 Given measured outputs ``z``, a model's simulated outputs ``z_sim``, the inputs ``u`` and
 the simulated states ``x_sim``, with the residual ``z - z_sim``:
 
-- :func:`simulation_metrics`: RMSE, NRMSE, fit %, R² and largest error per output;
-- :func:`whiteness_test`: is the residual white (autocorrelation, Ljung-Box)?
-- :func:`cross_correlation_test`: is it independent of past inputs?
-  (:func:`correlated_inputs`: the inputs it is not independent of;
-  :func:`lagging_outputs`: the outputs whose residual runs against their simulated rate,
-  a slow sensor?);
-- :func:`residual_regions`: in which range of a state or input does it concentrate, with
-  which sign?
-- :func:`range_violations`: measured ceilings/floors (saturations?) the model crosses;
-- :func:`output_jumps`: one-sample jumps of a measured output, repeated at one level, that
-  the model does not make (a discontinuous sensor?);
-- :func:`analyse_residuals`: all of the above as a :class:`ResidualReport` with
-  ``summary()`` and ``to_dict()``.
+- [`simulation_metrics`][sk_offwhite.diagnose.simulation_metrics]: RMSE, NRMSE, fit %, R² and
+  largest error per output;
+- [`whiteness_test`][sk_offwhite.diagnose.whiteness_test]: is the residual white (autocorrelation,
+  Ljung-Box)?
+- [`cross_correlation_test`][sk_offwhite.diagnose.cross_correlation_test]: is it independent of past
+  inputs? ([`correlated_inputs`][sk_offwhite.diagnose.correlated_inputs]: the inputs it is not
+  independent of; [`lagging_outputs`][sk_offwhite.diagnose.lagging_outputs]: the outputs whose
+  residual runs against their simulated rate, a slow sensor?);
+- [`residual_regions`][sk_offwhite.diagnose.residual_regions]: in which range of a state or input
+  does it concentrate, with which sign?
+- [`range_violations`][sk_offwhite.diagnose.range_violations]: measured ceilings/floors
+  (saturations?) the model crosses;
+- [`output_jumps`][sk_offwhite.diagnose.output_jumps]: one-sample jumps of a measured output,
+  repeated at one level, that the model does not make (a discontinuous sensor?);
+- [`analyse_residuals`][sk_offwhite.diagnose.analyse_residuals]: all of the above as a
+  [`ResidualReport`][sk_offwhite.diagnose.ResidualReport] with ``summary()`` and ``to_dict()``.
 
 Pure NumPy/SciPy; the inputs are never modified.
 """

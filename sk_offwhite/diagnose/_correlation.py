@@ -1,23 +1,23 @@
 r"""Correlation tests of a residual: is it white, and is it independent of the inputs?
 
-A model that has captured the system leaves a residual :math:`\varepsilon_k` (measured minus
+A model that has captured the system leaves a residual $\varepsilon_k$ (measured minus
 simulated output) that is white and unrelated to past inputs. With centred signals
-(the sample mean removed) and :math:`N` samples, the normalised correlations are
+(the sample mean removed) and $N$ samples, the normalised correlations are
 
-.. math::
+$$
+r_\varepsilon(\tau) = \frac{\sum_k \varepsilon_{k+\tau}\,\varepsilon_k}
+                           {\sum_k \varepsilon_k^2}, \qquad
+r_{\varepsilon u}(\tau) = \frac{\sum_k \varepsilon_{k+\tau}\,u_k}
+                               {\sqrt{\sum_k \varepsilon_k^2 \sum_k u_k^2}},
+$$
 
-    r_\varepsilon(\tau) = \frac{\sum_k \varepsilon_{k+\tau}\,\varepsilon_k}
-                               {\sum_k \varepsilon_k^2}, \qquad
-    r_{\varepsilon u}(\tau) = \frac{\sum_k \varepsilon_{k+\tau}\,u_k}
-                                   {\sqrt{\sum_k \varepsilon_k^2 \sum_k u_k^2}},
-
-summing over the samples where both indices exist. A positive lag :math:`\tau` compares the
-residual with the input :math:`\tau` samples *earlier* (the causal direction); a negative lag
+summing over the samples where both indices exist. A positive lag $\tau$ compares the
+residual with the input $\tau$ samples *earlier* (the causal direction); a negative lag
 with later inputs (which points at feedback).
 
-Under the null hypothesis each :math:`r(\tau)` is approximately normal with standard
-deviation :math:`1/\sqrt N`, so the band at confidence :math:`c` is
-:math:`\pm z_{(1+c)/2}/\sqrt N`.
+Under the null hypothesis each $r(\tau)$ is approximately normal with standard
+deviation $1/\sqrt N$, so the band at confidence $c$ is
+$\pm z_{(1+c)/2}/\sqrt N$.
 """
 
 from __future__ import annotations
@@ -50,18 +50,18 @@ __all__ = [
 
 @dataclass(frozen=True)
 class WhitenessResult:
-    """Outcome of :func:`whiteness_test`.
+    """Outcome of [`whiteness_test`][sk_offwhite.diagnose.whiteness_test].
 
     Attributes
     ----------
     lags : array of shape (max_lag + 1,)
         ``0, 1, ..., max_lag``.
     autocorrelation : array of shape (max_lag + 1,)
-        Normalised autocorrelation :math:`r_\\varepsilon(\\tau)`; ``autocorrelation[0] == 1``.
+        Normalised autocorrelation $r_\\varepsilon(\\tau)$; ``autocorrelation[0] == 1``.
     band : float
-        Half-width :math:`z_{(1+c)/2}/\\sqrt N` of the confidence band.
+        Half-width $z_{(1+c)/2}/\\sqrt N$ of the confidence band.
     fraction_outside : float
-        Fraction of the lags ``1..max_lag`` with :math:`|r_\\varepsilon(\\tau)|` above ``band``
+        Fraction of the lags ``1..max_lag`` with $|r_\\varepsilon(\\tau)|$ above ``band``
         (about ``1 - confidence`` for a white residual).
     q_statistic, p_value : float
         Ljung-Box statistic and its chi-squared p-value with ``max_lag`` degrees of freedom.
@@ -84,24 +84,25 @@ class WhitenessResult:
 
 @dataclass(frozen=True)
 class CrossCorrelationResult:
-    """Outcome of :func:`cross_correlation_test`, one row per input column.
+    """Outcome of [`cross_correlation_test`][sk_offwhite.diagnose.cross_correlation_test], one row
+    per input column.
 
     Attributes
     ----------
     lags : array of shape (2 * max_lag + 1,)
         ``-max_lag, ..., max_lag``; positive lags compare the residual with earlier inputs.
     correlation : array of shape (n_inputs, 2 * max_lag + 1)
-        Normalised cross-correlation :math:`r_{\\varepsilon u}(\\tau)`; NaN for a constant
+        Normalised cross-correlation $r_{\\varepsilon u}(\\tau)$; NaN for a constant
         input, which is not tested.
     band : array of shape (n_inputs,)
-        Per-lag band half-width :math:`z_{(1+c)/2}\\sqrt{P/N}`, with the Bartlett factor
-        :math:`P = \\max(1, 1 + 2\\sum_{k=1}^{L} r_\\varepsilon(k)\\,r_u(k))` that widens the
+        Per-lag band half-width $z_{(1+c)/2}\\sqrt{P/N}$, with the Bartlett factor
+        $P = \\max(1, 1 + 2\\sum_{k=1}^{L} r_\\varepsilon(k)\\,r_u(k))$ that widens the
         white-noise band when residual and input are both coloured.
     fraction_outside : array of shape (n_inputs,)
-        Fraction of the lags with :math:`|r_{\\varepsilon u}(\\tau)|` above ``band``.
+        Fraction of the lags with $|r_{\\varepsilon u}(\\tau)|$ above ``band``.
     statistic : array of shape (n_inputs,)
-        Largest standardised correlation :math:`\\max_\\tau |r_{\\varepsilon u}(\\tau)|
-        \\sqrt{N/P}`.
+        Largest standardised correlation $\\max_\\tau |r_{\\varepsilon u}(\\tau)|
+        \\sqrt{N/P}$.
     p_value : array of shape (n_inputs,)
         Bonferroni-corrected p-value of ``statistic`` over the ``2 * max_lag + 1`` lags
         (conservative even though neighbouring lags are correlated).
@@ -127,18 +128,18 @@ def whiteness_test(residual, max_lag: int = 25, confidence: float = 0.99) -> Whi
 
     The Ljung-Box statistic
 
-    .. math::
+    $$
+    Q = N (N + 2) \sum_{\tau=1}^{L} \frac{r_\varepsilon(\tau)^2}{N - \tau}
+    $$
 
-        Q = N (N + 2) \sum_{\tau=1}^{L} \frac{r_\varepsilon(\tau)^2}{N - \tau}
-
-    is approximately :math:`\chi^2_L` for a white residual, with :math:`L` = ``max_lag``.
+    is approximately $\chi^2_L$ for a white residual, with $L$ = ``max_lag``.
 
     Parameters
     ----------
     residual : array of shape (n_samples,) or (n_samples, 1)
         Measured minus simulated output; not constant.
     max_lag : int, default 25
-        Largest lag :math:`L`, between 1 and ``n_samples - 1``.
+        Largest lag $L$, between 1 and ``n_samples - 1``.
     confidence : float, default 0.99
         Confidence level of the band and of the verdict.
 
@@ -215,9 +216,9 @@ def cross_correlation_test(
 def correlated_inputs(residual, u, max_lag: int = 25, confidence: float = 0.99) -> tuple[int, ...]:
     """Indices of the inputs that some column of ``residual`` correlates with.
 
-    :func:`cross_correlation_test` on each column (an output's residual, shape
-    ``(n_samples, n_outputs)`` or ``(n_samples,)``): an input is named when its
-    ``p_value`` is below ``1 - confidence`` for one of them. A column that is not finite
+    [`cross_correlation_test`][sk_offwhite.diagnose.cross_correlation_test] on each column (an
+    output's residual, shape ``(n_samples, n_outputs)`` or ``(n_samples,)``): an input is named when
+    its ``p_value`` is below ``1 - confidence`` for one of them. A column that is not finite
     or is constant names none (there is nothing to test). A missing effect that acts
     through an input's history (an actuator's lag) leaves such a correlation; a residual
     independent of every input says the input reaches the model as it should.
@@ -238,14 +239,14 @@ def lagging_outputs(
     r"""Indices of the outputs whose measurement lags the model: the residual runs against
     the simulated output's rate.
 
-    A reading :math:`s` that follows the output :math:`y` through a lag of time constant
-    :math:`\tau` differs from it by :math:`s - y \approx -\tau \dot y`, so the residual
-    :math:`\varepsilon = z - \hat y` and the rate :math:`\dot{\hat y}` (central
+    A reading $s$ that follows the output $y$ through a lag of time constant
+    $\tau$ differs from it by $s - y \approx -\tau \dot y$, so the residual
+    $\varepsilon = z - \hat y$ and the rate $\dot{\hat y}$ (central
     differences) are negatively correlated at lag 0. An output is named when that
-    correlation :math:`r_0` lies below :math:`-z_c \sqrt{P/N}`, one-sided at
-    ``confidence`` :math:`c`, with the Bartlett factor :math:`P` of
-    :func:`cross_correlation_test` over ``max_lag`` lags (both signals are coloured). A
-    column that is not finite or is constant names none.
+    correlation $r_0$ lies below $-z_c \sqrt{P/N}$, one-sided at
+    ``confidence`` $c$, with the Bartlett factor $P$ of
+    [`cross_correlation_test`][sk_offwhite.diagnose.cross_correlation_test] over ``max_lag`` lags
+    (both signals are coloured). A column that is not finite or is constant names none.
 
     Parameters
     ----------
@@ -289,12 +290,12 @@ def _checked_lag(max_lag, n_samples: int) -> int:
 
 
 def _white_band(confidence: float, n_samples: int) -> float:
-    """Half-width :math:`z_{(1+c)/2}/\\sqrt N` of the white-noise band."""
+    """Half-width $z_{(1+c)/2}/\\sqrt N$ of the white-noise band."""
     return float(norm.ppf(0.5 + confidence / 2.0) / np.sqrt(n_samples))
 
 
 def _lagged_products(first: np.ndarray, second: np.ndarray, max_lag: int) -> np.ndarray:
-    """:math:`\\sum_k a_{k+\\tau} b_k` for :math:`\\tau = -L, \\dots, L`, by zero-padded FFT."""
+    """$\\sum_k a_{k+\\tau} b_k$ for $\\tau = -L, \\dots, L$, by zero-padded FFT."""
     size = fft.next_fast_len(2 * first.size - 1, real=True)
     spectrum = fft.rfft(first, size) * np.conj(fft.rfft(second, size))
     circular = fft.irfft(spectrum, size)
@@ -322,7 +323,7 @@ def _ljung_box(autocorrelation: np.ndarray, n_samples: int) -> tuple[float, floa
 
 
 def _bartlett_factor(residual: np.ndarray, column: np.ndarray, max_lag: int) -> float:
-    """:math:`P = \\max(1, 1 + 2\\sum_{k=1}^{L} r_\\varepsilon(k) r_u(k))`."""
+    """$P = \\max(1, 1 + 2\\sum_{k=1}^{L} r_\\varepsilon(k) r_u(k))$."""
     products = _autocorrelation(residual, max_lag)[1:] @ _autocorrelation(column, max_lag)[1:]
     return max(1.0, 1.0 + 2.0 * float(products))
 

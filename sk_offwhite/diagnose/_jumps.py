@@ -3,19 +3,19 @@ r"""Jump facts: the measured output steps in one sample, at one level, where the
 A sensor whose reading is discontinuous (a seam in a capacitive level strip, a worn spot
 on a potentiometer, an encoder that skips) makes the measured output jump each time the
 quantity it reads passes one value, whatever the dynamics. In the increments of the
-simulation residual, :math:`d_k = (z_{k+1} - z_k) - (\hat z_{k+1} - \hat z_k)`, such a
-jump is an *isolated* outlier: :math:`|d_k| > t\,s` with :math:`s = 1.4826\,
-\mathrm{median}|d - \mathrm{median}(d)|` (a robust standard deviation of the increments)
-and :math:`t` = ``threshold``, while :math:`|d_{k-1}|` and :math:`|d_{k+1}|` are not: a
+simulation residual, $d_k = (z_{k+1} - z_k) - (\hat z_{k+1} - \hat z_k)$, such a
+jump is an *isolated* outlier: $|d_k| > t\,s$ with $s = 1.4826\,
+\mathrm{median}|d - \mathrm{median}(d)|$ (a robust standard deviation of the increments)
+and $t$ = ``threshold``, while $|d_{k-1}|$ and $|d_{k+1}|$ are not: a
 fast phase of the dynamics that the model follows too slowly makes a run of outliers,
 not one.
 
 The jumps of one discontinuity share its level: the measured spans
-:math:`[\min(z_k, z_{k+1}), \max(z_k, z_{k+1})]` of the jumps overlap. Overlapping spans
+$[\min(z_k, z_{k+1}), \max(z_k, z_{k+1})]$ of the jumps overlap. Overlapping spans
 are grouped; a group of ``min_jumps`` or more whose jumps all step the same way as the
 level (up when the level rises, or all the other way) is a fact. Its level is the median
-midpoint of the spans, its height the median of :math:`\mathrm{sign}(\hat z_{k+1} -
-\hat z_k)\,d_k`, signed by the way the model's level moves there (positive: the reading
+midpoint of the spans, its height the median of $\mathrm{sign}(\hat z_{k+1} -
+\hat z_k)\,d_k$, signed by the way the model's level moves there (positive: the reading
 steps up as the level rises). Both are in the output's units and
 the threshold is relative to the increments' spread, so rescaling the data rescales the
 fact and changes nothing else.
@@ -116,7 +116,7 @@ def output_jumps(
 def isolated_outliers(increments: np.ndarray, threshold: float) -> np.ndarray:
     """Indices ``k`` where ``|increments[k]|`` exceeds ``threshold`` robust standard
     deviations and neither neighbour does. Noise-free increments that are mostly exactly
-    equal have no spread: their floor is :data:`SPREAD_FLOOR` of the largest."""
+    equal have no spread: their floor is `SPREAD_FLOOR` of the largest."""
     centred = increments - np.median(increments)
     largest = np.max(np.abs(centred), initial=0.0)
     spread = max(MAD_TO_SD * np.median(np.abs(centred)), SPREAD_FLOOR * largest)

@@ -1,21 +1,23 @@
 r"""Simulation error metrics: how far a model's free-run simulation is from the measurement.
 
-With the error :math:`e_k = z_k - \hat z_k` over the ``n`` scored samples
-:math:`k = \text{skip}, \dots, N-1` and :math:`\bar z` the mean measurement there, each
+With the error $e_k = z_k - \hat z_k$ over the ``n`` scored samples
+$k = \text{skip}, \dots, N-1$ and $\bar z$ the mean measurement there, each
 output gets
 
-.. math::
+$$
+\text{rmse} = \sqrt{\tfrac1n \textstyle\sum_k e_k^2}, \qquad
+\text{nrmse} = \text{rmse} / \operatorname{std}(z), \qquad
+\text{fit} = 100 \left(1 - \frac{\lVert e \rVert}{\lVert z - \bar z \rVert}\right),
+$$
 
-    \text{rmse} = \sqrt{\tfrac1n \textstyle\sum_k e_k^2}, \qquad
-    \text{nrmse} = \text{rmse} / \operatorname{std}(z), \qquad
-    \text{fit} = 100 \left(1 - \frac{\lVert e \rVert}{\lVert z - \bar z \rVert}\right),
-
-    R^2 = 1 - \frac{\sum_k e_k^2}{\sum_k (z_k - \bar z)^2}, \qquad
-    \text{max\_abs\_error} = \max_k |e_k|,
+$$
+R^2 = 1 - \frac{\sum_k e_k^2}{\sum_k (z_k - \bar z)^2}, \qquad
+\text{max\_abs\_error} = \max_k |e_k|,
+$$
 
 where ``std`` is the population standard deviation and ``fit`` is MATLAB ``compare``'s
-fit. They are related: :math:`\text{nrmse} = \sqrt{1 - R^2}` and
-:math:`\text{fit} = 100\,(1 - \text{nrmse})`. A constant measured output has no spread to
+fit. They are related: $\text{nrmse} = \sqrt{1 - R^2}$ and
+$\text{fit} = 100\,(1 - \text{nrmse})$. A constant measured output has no spread to
 normalise by, so its ``nrmse``, ``fit_percent`` and ``r2`` are NaN.
 """
 

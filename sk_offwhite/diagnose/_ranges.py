@@ -1,11 +1,11 @@
 r"""Range facts: measured ceilings and floors, and model excursions beyond the measured range.
 
 A sensor or actuator that saturates leaves a flat top in the data: the measured maximum
-:math:`M = \max_k z_k` is reached again and again. With the tolerance
-:math:`\delta = \text{tolerance} \cdot (\max_k z_k - \min_k z_k)`, the samples *at the
-ceiling* are those with :math:`z_k \ge M - \delta`; ``min_repeats`` or more of them flag a
+$M = \max_k z_k$ is reached again and again. With the tolerance
+$\delta = \text{tolerance} \cdot (\max_k z_k - \min_k z_k)$, the samples *at the
+ceiling* are those with $z_k \ge M - \delta$; ``min_repeats`` or more of them flag a
 possible saturation. The model *exceeds* the measured range in the samples with
-:math:`\hat z_k > M + \delta`. Floors are the mirror image.
+$\hat z_k > M + \delta$. Floors are the mirror image.
 """
 
 from __future__ import annotations
@@ -77,7 +77,7 @@ def range_violations(
     names : sequence of str, optional
         One name per output; defaults to ``z1, z2, ...``.
     tolerance : float, default 1e-6
-        Tolerance :math:`\\delta` as a fraction of each output's measured range.
+        Tolerance $\\delta$ as a fraction of each output's measured range.
     min_repeats : int, default 3
         Samples at the limit that make it a ceiling or floor; without one, fewer model
         excursions than this are not reported.

@@ -1,27 +1,27 @@
 r"""Where the residual lives: ranges of a variable in which the model error concentrates.
 
-For a named variable :math:`v` (a simulated state, an input, the simulated output) the
-samples are cut into quantile bins of :math:`v`, so each bin holds about the same number of
-samples. For a contiguous run of bins :math:`R` (not all of them) let
+For a named variable $v$ (a simulated state, an input, the simulated output) the
+samples are cut into quantile bins of $v$, so each bin holds about the same number of
+samples. For a contiguous run of bins $R$ (not all of them) let
 
-.. math::
-
-    S(R) = \frac{\sum_{k: v_k \in R} \varepsilon_k^2}{\sum_k \varepsilon_k^2}, \qquad
-    F(R) = \frac{\#\{k: v_k \in R\}}{N}
+$$
+S(R) = \frac{\sum_{k: v_k \in R} \varepsilon_k^2}{\sum_k \varepsilon_k^2}, \qquad
+F(R) = \frac{\#\{k: v_k \in R\}}{N}
+$$
 
 be its share of the squared residual and of the samples. The region reported is the run
-that maximises the *concentration* :math:`S(R) - F(R)`: it gathers exactly the bins whose
+that maximises the *concentration* $S(R) - F(R)$: it gathers exactly the bins whose
 mean squared residual is above the overall one, as long as they are contiguous. A residual
-spread evenly over :math:`v` has a concentration near 0; one living only in a small range
+spread evenly over $v$ has a concentration near 0; one living only in a small range
 has a concentration near 1.
 
 Binning always finds *some* run with a positive concentration, so each region gets a
 p-value from circular time shifts: the variable is shifted against the residual by ``s``
 samples (wrapping around), which keeps the time structure of each but breaks their
 alignment, and the best concentration is found again. With ``m`` evenly spaced shifts,
-:math:`p = (1 + \#\{\text{shifted} \ge \text{observed}\}) / (1 + m)`.
+$p = (1 + \#\{\text{shifted} \ge \text{observed}\}) / (1 + m)$.
 
-The residual is :math:`\varepsilon = z - \hat z` (measured minus simulated), so a
+The residual is $\varepsilon = z - \hat z$ (measured minus simulated), so a
 positive mean in the region means the model under-predicts there.
 """
 
@@ -61,10 +61,10 @@ class ResidualRegion:
         The region's range of the variable; ``-inf`` / ``inf`` when it reaches the lowest /
         highest bin (the region is "below high" / "above low").
     error_share, sample_share : float
-        :math:`S` and :math:`F`: the region's shares of the squared residual and of the
+        $S$ and $F$: the region's shares of the squared residual and of the
         samples.
     concentration : float
-        :math:`S - F`, in ``[0, 1)``; results are sorted by it.
+        $S - F$, in ``[0, 1)``; results are sorted by it.
     rms_inside, rms_outside, mean_inside : float
         RMS residual in and out of the region, and the mean residual in it.
     rms_ratio : float

@@ -38,7 +38,8 @@ __all__ = ["ResidualReport", "analyse_residuals"]
 
 @dataclass(frozen=True)
 class ResidualReport:
-    """Every residual diagnostic of one simulation; build it with :func:`analyse_residuals`.
+    """Every residual diagnostic of one simulation; build it with
+    [`analyse_residuals`][sk_offwhite.diagnose.analyse_residuals].
 
     Attributes
     ----------
@@ -48,7 +49,7 @@ class ResidualReport:
     confidence : float
         Confidence level of the correlation tests.
     metrics : dict
-        :func:`simulation_metrics` of the scored samples.
+        [`simulation_metrics`][sk_offwhite.diagnose.simulation_metrics] of the scored samples.
     whiteness : dict of str to WhitenessResult or None
         Per output; None when its residual is constant.
     cross_correlation : dict of str to CrossCorrelationResult or None

@@ -1,9 +1,10 @@
 """The closed loop on measured data: residual, missing effect, augmented physics, before/after.
 
-:func:`close_the_loop` runs the whole loop on an estimation record, :func:`score_models`
-scores its models under both protocols, and :func:`write_report` writes the Markdown report
-with its figures. The pieces (:func:`form_hypotheses`, :func:`propose_effects`) can be used on
-their own.
+[`close_the_loop`][sk_offwhite.loop.close_the_loop] runs the whole loop on an estimation record,
+[`score_models`][sk_offwhite.loop.score_models] scores its models under both protocols, and
+[`write_report`][sk_offwhite.loop.write_report] writes the Markdown report with its figures. The
+pieces ([`form_hypotheses`][sk_offwhite.loop.form_hypotheses],
+[`propose_effects`][sk_offwhite.loop.propose_effects]) can be used on their own.
 """
 
 from ._candidates import Candidate, promoted_terms, propose_effects

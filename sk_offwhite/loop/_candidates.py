@@ -1,39 +1,39 @@
 r"""Explicit effects proposed by the hypotheses and by the measured output range.
 
 Each hypothesis "equation ``i`` lacks a term in ... that removes / adds ``x_i``" and each
-measured ceiling of an output becomes one or more :class:`~sk_offwhite.Effect` instances,
+measured ceiling of an output becomes one or more [`Effect`][sk_offwhite.Effect] instances,
 only where they make physical sense for the variables' kinds
-(:func:`~sk_offwhite._kinds.physical_kinds`):
+(`physical_kinds`):
 
 * levels (and one-signed generic states): overflows, leaks, caps;
 * velocities and rates: Coulomb friction, quadratic drag (velocities), a polynomial
   stiffness in the kinematic partner (the position), a constant (a force offset);
-* any equation: a constant (:class:`~sk_offwhite.Bias`), a leak for generic states and
-  temperatures; temperatures: a loss of fitted power (:class:`~sk_offwhite.PowerLoss`);
+* any equation: a constant ([`Bias`][sk_offwhite.Bias]), a leak for generic states and
+  temperatures; temperatures: a loss of fitted power ([`PowerLoss`][sk_offwhite.PowerLoss]);
 * inputs in the hypothesis that are efforts or flows: a saturating actuator and a dead zone;
 * inputs of a state's declared kind, whatever the hypotheses say: a threshold on their
-  difference with that state, two- or one-sided (:class:`~sk_offwhite.DifferenceDeadZone`:
-  a clearance, a diode);
+  difference with that state, two- or one-sided
+  ([`DifferenceDeadZone`][sk_offwhite.DifferenceDeadZone]: a clearance, a diode);
 * inputs that are positions or angles: play in the transmission
-  (:class:`~sk_offwhite.Backlash`, an effect with a hidden state);
+  ([`Backlash`][sk_offwhite.Backlash], an effect with a hidden state);
 * inputs the simulation residual correlates with
-  (:func:`~sk_offwhite.diagnose.correlated_inputs`): a first-order lag of their actuator
-  (:class:`~sk_offwhite.InputLag`, a hidden state too) and a dead time
-  (:class:`~sk_offwhite.InputDelay`, the past commands as hidden states);
+  ([`correlated_inputs`][sk_offwhite.diagnose.correlated_inputs]): a first-order lag of their
+  actuator ([`InputLag`][sk_offwhite.InputLag], a hidden state too) and a dead time
+  ([`InputDelay`][sk_offwhite.InputDelay], the past commands as hidden states);
 * outputs whose residual runs against the simulated rate
-  (:func:`~sk_offwhite.diagnose.lagging_outputs`): a slow sensor
-  (:class:`~sk_offwhite.SensorLag`, its reading a hidden state);
+  ([`lagging_outputs`][sk_offwhite.diagnose.lagging_outputs]): a slow sensor
+  ([`SensorLag`][sk_offwhite.SensorLag], its reading a hidden state);
 * measured states: a sensor offset and a sensor calibration (offset, gain, curvature:
-  :class:`~sk_offwhite.SensorCalibration`); measured ceilings: an output saturation;
+  [`SensorCalibration`][sk_offwhite.SensorCalibration]); measured ceilings: an output saturation;
   repeated one-sample jumps of a measured output at one level
-  (:func:`~sk_offwhite.diagnose.output_jumps`): a step in its reading
-  (:class:`~sk_offwhite.SensorStep`).
+  ([`output_jumps`][sk_offwhite.diagnose.output_jumps]): a step in its reading
+  ([`SensorStep`][sk_offwhite.SensorStep]).
 
 The strongest dictionary terms are also proposed as they are
-(:class:`~sk_offwhite.DictionaryTerm`, when ``library`` is given): that is how an effect
+([`DictionaryTerm`][sk_offwhite.DictionaryTerm], when ``library`` is given): that is how an effect
 outside the catalogue enters the physics. Initial values come from the data: a term
-:math:`p\,b(x, u)` linear in its parameter starts at the least-squares fit of
-:math:`b` to the hypothesis' correction (converted to the physics' time unit); thresholds
+$p\,b(x, u)$ linear in its parameter starts at the least-squares fit of
+$b$ to the hypothesis' correction (converted to the physics' time unit); thresholds
 and widths from quantiles and RMS values of the record, the corners of overflows, caps and
 sensor ceilings from the variable's standard deviation (``CORNER_FRACTION``). Candidates
 are identified by the effect's name, so a cause proposed twice is tried once.
@@ -222,10 +222,10 @@ def _constants(hypothesis, states, kinds: Kinds) -> list[Candidate]:
 
 
 def _power_loss(hypothesis, temperature: np.ndarray) -> Candidate:
-    """A heat loss in a fitted power of the excess over a level (:class:`PowerLoss`):
-    convection or radiation where the physics declares Newton's law. The level starts at
-    the lowest simulated temperature, the exponent at 2; the reference excess is the
-    temperature's RMS deviation on the record."""
+    """A heat loss in a fitted power of the excess over a level
+    ([`PowerLoss`][sk_offwhite.PowerLoss]): convection or radiation where the physics declares
+    Newton's law. The level starts at the lowest simulated temperature, the exponent at 2; the
+    reference excess is the temperature's RMS deviation on the record."""
     i, name = hypothesis.equation_index, hypothesis.equation
     level, reference = float(np.min(temperature)), _rms(temperature - np.mean(temperature))
     loss = PowerLoss(i, level=level, reference=reference, name=f"loss_{name}")
@@ -236,7 +236,7 @@ def _actuators(hypothesis, u, input_names, kinds: Kinds) -> list[Candidate]:
     """A correction in an input that is an effort or a flow: perhaps the actuator
     saturates, softly (``tanh``) or at a hard limit (``clip``), or has a dead zone. Each
     starts where it barely changes the declared model: the saturations at the 90 %
-    quantile of :math:`|u_j|`, the dead zone's half-width at :data:`DEAD_ZONE_START` of
+    quantile of $|u_j|$, the dead zone's half-width at `DEAD_ZONE_START` of
     the input's RMS (the fit widens it as far as the data ask)."""
     out = []
     for j, n in enumerate(input_names):
@@ -297,7 +297,7 @@ def _drives(u, states, input_names, names, kinds: Kinds) -> list[Candidate]:
 
 def _transmissions(hypothesis, u, input_names, kinds: Kinds) -> list[Candidate]:
     """Play in the transmission of an input that is a position or an angle (a gear, a
-    lead screw): :class:`~sk_offwhite.Backlash`, its half-width started at 5 % of the
+    lead screw): [`Backlash`][sk_offwhite.Backlash], its half-width started at 5 % of the
     input's standard deviation and its driven side at the first input. Proposed whatever
     variables the hypothesis names: an effect with memory is no function of them."""
     out = []
@@ -313,7 +313,7 @@ def _transmissions(hypothesis, u, input_names, kinds: Kinds) -> list[Candidate]:
 
 DELAY_REACH = 25
 """Samples a proposed dead time may reach: the lags over which
-:func:`~sk_offwhite.diagnose.correlated_inputs` (its default ``max_lag``) found the
+[`correlated_inputs`][sk_offwhite.diagnose.correlated_inputs] (its default ``max_lag``) found the
 correlation that proposes it. Measured on ``make_delayed_heater(delay=24.0)`` (12 samples),
 fits started at one sample: with a reach of 8 samples the delay stops at its bound and
 validates at 0.229 K; with 16 or 25 it reaches 24.02 s and the sensor's noise, 0.020 K."""
@@ -321,10 +321,10 @@ validates at 0.229 K; with 16 or 25 it reaches 24.02 s and the sensor's noise, 0
 
 def _lags(hypothesis, u, input_names, dt: float, correlated) -> list[Candidate]:
     """A first-order lag of the actuator of each input in ``correlated`` that varies
-    (:class:`~sk_offwhite.InputLag`), its time constant started at one sample (``dt``,
+    ([`InputLag`][sk_offwhite.InputLag]), its time constant started at one sample (``dt``,
     the effects' unit of time) and its output settled at the first command, and a dead
-    time of the input (:class:`~sk_offwhite.InputDelay`, started at one sample, up to
-    :data:`DELAY_REACH`), the other variant of how a command reaches the plant. Proposed whatever
+    time of the input ([`InputDelay`][sk_offwhite.InputDelay], started at one sample, up to
+    `DELAY_REACH`), the other variant of how a command reaches the plant. Proposed whatever
     variables the hypothesis names, as the play (an effect with memory is no function of
     them), but only for an input the residual correlates with: a lag's or a delay's
     effect is, to first order, a linear function of the input's history."""
@@ -345,7 +345,7 @@ def _lags(hypothesis, u, input_names, dt: float, correlated) -> list[Candidate]:
 
 def _sensor_lags(lagging, output_names, outputs, dt: float) -> list[Candidate]:
     """A first-order lag of the sensor of each output in ``lagging``
-    (:class:`~sk_offwhite.SensorLag`), its time constant started at one sample (``dt``)
+    ([`SensorLag`][sk_offwhite.SensorLag]), its time constant started at one sample (``dt``)
     and its reading at the simulated output's first value."""
     out = []
     for o in lagging:
@@ -365,7 +365,8 @@ def _slug(text: str) -> str:
 
 
 def promoted_terms(hypotheses, library, input_features, dt: float, limit=3) -> list[Candidate]:
-    """The ``limit`` strongest dictionary terms as :class:`~sk_offwhite.DictionaryTerm`."""
+    """The ``limit`` strongest dictionary terms as
+    [`DictionaryTerm`][sk_offwhite.DictionaryTerm]."""
     terms = sorted(
         ((h.gain * t.share, h, t) for h in hypotheses for t in h.terms if t.column >= 0),
         key=lambda item: -item[0],
@@ -520,40 +521,41 @@ def propose_effects(
     correlated_inputs=(),
     lagging_outputs=(),
 ) -> list[Candidate]:
-    """Candidate effects (list of :class:`Candidate`), one per effect name, by evidence.
+    """Candidate effects (list of [`Candidate`][sk_offwhite.loop.Candidate]), one per effect name,
+    by evidence.
 
     Parameters
     ----------
     hypotheses : list of Hypothesis
-        From :func:`~sk_offwhite.loop.evidence_hypotheses`, strongest first.
+        From [`evidence_hypotheses`][sk_offwhite.loop.evidence_hypotheses], strongest first.
     range_facts : list of RangeViolation
-        From :func:`~sk_offwhite.diagnose.range_violations`.
+        From [`range_violations`][sk_offwhite.diagnose.range_violations].
     state_names, output_names : sequence of str
     states : ndarray of shape (n_samples, n_states)
         Simulated states of the fitted baseline (levels are read in their scale).
     measured : sequence of int, default=None
         Index of the state each output measures directly, when the output map is
-        :class:`~sk_offwhite._physics.MeasuredStates`; enables offset, calibration and cap
+        `MeasuredStates`; enables offset, calibration and cap
         candidates.
     u : ndarray of shape (n_samples, n_inputs), default=None
         Inputs of the record, with ``input_names``; enable actuator candidates.
     input_names : sequence of str, default=()
     kinds : Kinds, default=None
-        Physical kinds (:func:`~sk_offwhite._kinds.physical_kinds`); ``None``: generic.
+        Physical kinds (`physical_kinds`); ``None``: generic.
     dt : float, default=1.0
-        Time unit of the effects' rates (:func:`~sk_offwhite._effects.time_step`).
+        Time unit of the effects' rates (`time_step`).
     outputs : ndarray of shape (n_samples, n_outputs), default=None
         Simulated outputs of the fitted baseline: an output saturation's corner is 2.5 %
         of their standard deviation (overflows take theirs from ``states``), and so is a
         sensor step's; ``None`` keeps the effect's default corner.
     jumps : sequence of OutputJump, default=()
-        From :func:`~sk_offwhite.diagnose.output_jumps`: a step in the reading of each
+        From [`output_jumps`][sk_offwhite.diagnose.output_jumps]: a step in the reading of each
         output that jumps.
     correlated_inputs : sequence of int, default=()
-        From :func:`~sk_offwhite.diagnose.correlated_inputs` on the baseline's
+        From [`correlated_inputs`][sk_offwhite.diagnose.correlated_inputs] on the baseline's
         simulation residual: a lag of each of these inputs' actuators.
     lagging_outputs : sequence of int, default=()
-        From :func:`~sk_offwhite.diagnose.lagging_outputs`: a lag of each of these
+        From [`lagging_outputs`][sk_offwhite.diagnose.lagging_outputs]: a lag of each of these
         outputs' sensors.
     """
     names, output_names = tuple(state_names), list(output_names)

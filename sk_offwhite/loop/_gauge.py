@@ -1,32 +1,32 @@
 r"""Directions the data do not determine in the augmented physics, and a parameter held on each.
 
 An added effect can leave the augmented physics without a scale: a sensor calibration
-:math:`z = x + c_0 + c_1 \xi + c_2 \xi^2` (:math:`\xi` the centred, scaled level) on a
-level :math:`x` whose dynamics a rescaling :math:`x \to a x` leaves unchanged (the inflow's
-gain times :math:`a`, Torricelli's outflow coefficient times :math:`\sqrt a`, an overflow's
-level times :math:`a`) reads the same output for every :math:`a`, up to what a bound or a
+$z = x + c_0 + c_1 \xi + c_2 \xi^2$ ($\xi$ the centred, scaled level) on a
+level $x$ whose dynamics a rescaling $x \to a x$ leaves unchanged (the inflow's
+gain times $a$, Torricelli's outflow coefficient times $\sqrt a$, an overflow's
+level times $a$) reads the same output for every $a$, up to what a bound or a
 fixed corner breaks. Along that orbit the fit is flat or nearly so: its standard errors
 describe the orbit, not the measurements, and the cross-validation folds land at different
 points of it.
 
 A direction counts as undetermined when the Gauss-Newton standard error of the relative
-change along it, :math:`\hat\sigma/\sqrt{\mu}` for an eigenpair :math:`(\mu, v)` of
-:math:`D J^\top J D` (:math:`J` the Jacobian of the simulated outputs, :math:`D =
-\operatorname{diag}|p|`, :math:`\hat\sigma^2` the residual variance, as in
-:func:`~sk_offwhite.certify.identifiability`), is at least :data:`MAX_RELATIVE_ERROR`, or
-when :math:`\mu` is below the verdict's tolerance (a singular matrix): the data then leave
+change along it, $\hat\sigma/\sqrt{\mu}$ for an eigenpair $(\mu, v)$ of
+$D J^\top J D$ ($J$ the Jacobian of the simulated outputs, $D =
+\operatorname{diag}|p|$, $\hat\sigma^2$ the residual variance, as in
+[`identifiability`][sk_offwhite.certify.identifiability]), is at least `MAX_RELATIVE_ERROR`, or
+when $\mu$ is below the verdict's tolerance (a singular matrix): the data then leave
 the loaded parameters uncertain by half their values or more, whatever their units.
 
 On each such direction along which variables of two sources trade off (each loading by
-:data:`MIN_EFFECT_LOADING`; a source is an added effect, or the declared physics with the
+`MIN_EFFECT_LOADING`; a source is an added effect, or the declared physics with the
 initial states), one parameter of an added effect is held at its fitted value (the one
 that loads most): the effect made the direction, and the declared parameters keep what
 the physics says of them. A direction the declared physics has on its own is left to the
 user (the identifiability verdict reports it), as are initial states; so is a direction
 within one effect's parameters, the uncertainty of that effect's own size or shape (a
 calibration the data cannot tell from none: on the stepped-sensor tank one fitted to
-nearly nothing, :math:`c_1 = -0.002`, had a direction loading :math:`c_1` by 0.78 and
-:math:`c_0` by 0.62, a relative error of 1.4, as near-zero values have for any small
+nearly nothing, $c_1 = -0.002$, had a direction loading $c_1$ by 0.78 and
+$c_0$ by 0.62, a relative error of 1.4, as near-zero values have for any small
 absolute change), which the effect set's cross-validation judges.
 """
 
@@ -54,8 +54,8 @@ __all__ = [
 ]
 
 RTOL = 1e-9
-r"""The relative eigenvalue below which :math:`D J^\top J D` counts as singular (the
-default tolerance of :func:`~sk_offwhite.certify.identifiability`)."""
+r"""The relative eigenvalue below which $D J^\top J D$ counts as singular (the
+default tolerance of [`identifiability`][sk_offwhite.certify.identifiability])."""
 
 MAX_RELATIVE_ERROR = 0.5
 """The standard error of a relative change along a direction (in units of the
@@ -68,7 +68,7 @@ parameter counts as being on a direction."""
 
 
 def relative_errors(values, jacobian, residual, rtol: float = RTOL):
-    r"""Eigenvectors of :math:`D J^\top J D` (columns) and the standard error of the
+    r"""Eigenvectors of $D J^\top J D$ (columns) and the standard error of the
     relative change along each (``inf`` where the matrix is singular)."""
     scales = variable_scales(values)
     eigenvalues, eigenvectors = relative_spectrum(jacobian.T @ jacobian, scales)
@@ -83,17 +83,17 @@ def undetermined_directions(
     names, values, jacobian, residual, max_relative_error: float = MAX_RELATIVE_ERROR
 ) -> tuple:
     r"""The directions of a fit the data do not determine, ``{name: loading}`` each
-    (largest loading first): the eigenvectors of :math:`D J^\top J D` along which the
-    relative standard error (:func:`relative_errors`) reaches ``max_relative_error``.
-    ``names`` and ``values`` are the fit's variables, ``jacobian`` :math:`\partial \hat
-    z/\partial p` (one row per measured value) and ``residual`` :math:`\hat z - z`."""
+    (largest loading first): the eigenvectors of $D J^\top J D$ along which the
+    relative standard error (`relative_errors`) reaches ``max_relative_error``.
+    ``names`` and ``values`` are the fit's variables, ``jacobian`` $\partial \hat
+    z/\partial p$ (one row per measured value) and ``residual`` $\hat z - z$."""
     eigenvectors, errors = relative_errors(np.asarray(values, float), jacobian, residual)
     weak = np.flatnonzero(errors >= max_relative_error)
     return tuple(direction_loadings(eigenvectors[:, i], names) for i in weak)
 
 
 def fit_undetermined_directions(est, u, z) -> tuple:
-    """:func:`undetermined_directions` of a fitted estimator on its record (its free
+    """`undetermined_directions` of a fitted estimator on its record (its free
     parameters and initial states; the Jacobian in double precision)."""
     with jax.enable_x64(True):
         local = local_problem(est, u, z, None, False)
@@ -103,7 +103,7 @@ def fit_undetermined_directions(est, u, z) -> tuple:
 
 def _held_on(direction: dict[str, float], sources: dict[str, str], holdable) -> str | None:
     """The parameter of ``holdable`` of largest loading on ``direction`` when it loads by
-    :data:`MIN_EFFECT_LOADING` and a variable of another source does too, else ``None``.
+    `MIN_EFFECT_LOADING` and a variable of another source does too, else ``None``.
     ``sources`` maps each added effect's parameter to its effect's name; the other
     variables (the declared physics' and the initial states) are one source. A direction
     within one effect is the uncertainty of its own size or shape, which the effect set's
@@ -122,7 +122,7 @@ def held_parameters(directions, physics: PhysicsModel, effects, fitted: dict) ->
     ----------
     directions : sequence of dict
         The undetermined directions, ``{name: loading}``
-        (:func:`undetermined_directions`).
+        (`undetermined_directions`).
     physics : PhysicsModel
         The augmented physics that was fitted.
     effects : sequence of Effect
@@ -157,7 +157,7 @@ def holding(physics: PhysicsModel, held: dict) -> PhysicsModel:
 
 def held_note(held: dict, directions, rmse: tuple, cv: tuple) -> str:
     """The report's sentence on the ``held`` parameters: the directions they remove (the
-    other variables that load by :data:`MIN_EFFECT_LOADING` on the direction each loads on
+    other variables that load by `MIN_EFFECT_LOADING` on the direction each loads on
     most), the estimation RMSE before and after (the fit is unchanged) and the CV RMSE
     before and after (the folds no longer wander along the directions)."""
     parts = []

@@ -1,25 +1,25 @@
 r"""From the evidence of the dictionary terms to named hypotheses about the missing physics.
 
-:func:`evidence_hypotheses` reads the hypotheses off the physics-only fit: each term's
-projected gain (:class:`~sk_offwhite._sparsity.TermEvidence`, the part of the residual it
+[`evidence_hypotheses`][sk_offwhite.loop.evidence_hypotheses] reads the hypotheses off the
+physics-only fit: each term's projected gain (`TermEvidence`, the part of the residual it
 explains that no re-adjustment of the declared parameters can), so a term that only
 re-parametrises the physics (a linear spring in a linear oscillator) carries no weight.
 Terms that add at least ``min_share`` of the strongest gain beyond the stronger terms
 (matching pursuit) make up one hypothesis per equation, its
-correction :math:`\hat\delta_i = \hat\Omega_{ij}\varphi_j` taken from the equation's
+correction $\hat\delta_i = \hat\Omega_{ij}\varphi_j$ taken from the equation's
 strongest term.
 
-:func:`form_hypotheses` reads them off a fitted sparse correction instead: for a
-correction :math:`\delta_i = \sum_j \Omega_{ij}\varphi_j` of state equation :math:`i`,
+[`form_hypotheses`][sk_offwhite.loop.form_hypotheses] reads them off a fitted sparse correction
+instead: for a correction $\delta_i = \sum_j \Omega_{ij}\varphi_j$ of state equation $i$,
 each selected term is ranked by its contribution along the simulated trajectory,
-:math:`c_{ij} = \mathrm{RMS}_k(\Omega_{ij}\varphi_j(\hat x_k, u_k))`, with share
-:math:`c_{ij}^2 / \sum_{j'} c_{ij'}^2`.
+$c_{ij} = \mathrm{RMS}_k(\Omega_{ij}\varphi_j(\hat x_k, u_k))$, with share
+$c_{ij}^2 / \sum_{j'} c_{ij'}^2$.
 
 Either way, the variables of the dominant terms, the sign of
-:math:`\sum_k \delta_{i,k} \hat x_{i,k}` (``-1``: the correction drives :math:`x_i` toward
-zero, i.e. removes from a level) and the range of a variable where :math:`|\delta_i|`
-concentrates (:func:`~sk_offwhite.diagnose.residual_regions` applied to
-:math:`\delta_i`) make up one hypothesis per corrected equation.
+$\sum_k \delta_{i,k} \hat x_{i,k}$ (``-1``: the correction drives $x_i$ toward
+zero, i.e. removes from a level) and the range of a variable where $|\delta_i|$
+concentrates ([`residual_regions`][sk_offwhite.diagnose.residual_regions] applied to
+$\delta_i$) make up one hypothesis per corrected equation.
 """
 
 from __future__ import annotations
@@ -147,9 +147,9 @@ def _agreement(weight: np.ndarray) -> float:
 
 
 def _sign(delta: np.ndarray, state: np.ndarray, signals: dict, region) -> int:
-    r"""Sign of :math:`\sum_k \delta_k x_k` over the samples that agree most on it: those of
+    r"""Sign of $\sum_k \delta_k x_k$ over the samples that agree most on it: those of
     the region where the correction acts, if any, unless the whole record's net weight is
-    a larger share of its absolute weight :math:`\sum_k|\delta_k x_k|` (:func:`_agreement`).
+    a larger share of its absolute weight $\sum_k|\delta_k x_k|$ (`_agreement`).
 
     ``-1``: the correction drives the state toward zero (for a level: removes from it);
     ``+1``: away from zero. Where the terms of both signs cancel, the net is left to

@@ -2,17 +2,17 @@ r"""The closed loop: residual -> evidence -> named effect -> refit -> before/aft
 
 1. Fit the declared physics (multiple shooting, then the whole record).
 2. **Evidence.** At that fit, every dictionary term's projected gain
-   (:class:`~sk_offwhite._sparsity.TermEvidence`): what it would explain that no
+   (`TermEvidence`): what it would explain that no
    re-adjustment of the declared parameters can. The strongest terms make up the
-   hypotheses (:func:`~sk_offwhite.loop.evidence_hypotheses`). With ``fit_delta``, the
-   declared physics + sparse :math:`\delta` (support path, :math:`\gamma` by CV) adds the
-   hypotheses of its fitted correction (:func:`~sk_offwhite.loop.form_hypotheses`), only
+   hypotheses ([`evidence_hypotheses`][sk_offwhite.loop.evidence_hypotheses]). With ``fit_delta``,
+   the declared physics + sparse $\delta$ (support path, $\gamma$ by CV) adds the
+   hypotheses of its fitted correction ([`form_hypotheses`][sk_offwhite.loop.form_hypotheses]), only
    when it beats the declared physics under CV by ``min_gain`` (else a note says so):
    the linearised evidence misses effects far from the declared trajectory (an overflow
    of a state that the declared physics never fills).
 3. **Candidates** from the hypotheses, the measured output range and the variables'
-   physical kinds (:func:`~sk_offwhite.loop.propose_effects`), plus the strongest terms
-   themselves promoted into the physics (:class:`~sk_offwhite.DictionaryTerm`).
+   physical kinds ([`propose_effects`][sk_offwhite.loop.propose_effects]), plus the strongest terms
+   themselves promoted into the physics ([`DictionaryTerm`][sk_offwhite.DictionaryTerm]).
 4. **Selection.** Each candidate is fitted alone on the estimation record; then forward
    selection adds, among the ``beam`` best, the candidate that lowers the estimation error
    most while it lowers it by ``min_gain`` (when no candidate helps alone, pairs of the best
@@ -21,25 +21,25 @@ r"""The closed loop: residual -> evidence -> named effect -> refit -> before/aft
    of their gain, are cross-validated, each from its own fit on the whole record; the
    smallest within ``tolerance`` of the best is kept if it beats the declared physics by
    ``min_gain``, then refined stepwise (each other named candidate added or exchanged for
-   one of its effects, each of its effects dropped; see :func:`_swap`).
+   one of its effects, each of its effects dropped; see `_swap`).
 5. Refit the augmented physics; where an added effect leaves its fit a direction the data
    do not determine (a calibrated level whose scale nothing else fixes), hold one of the
-   effect's parameters on it at its fitted value (:mod:`~sk_offwhite.loop._gauge`), when
+   effect's parameters on it at its fitted value (`_gauge`), when
    that leaves the fit and, within ``tolerance``, its CV error as they were. Then, with
-   ``fit_delta``, fit the augmented physics with a sparse :math:`\delta` (:math:`\gamma`
+   ``fit_delta``, fit the augmented physics with a sparse $\delta$ ($\gamma$
    chosen by CV on the support path); with ``fit_output_delta`` too, where outputs
    measure states, the augmented physics with a sparse correction of its output map
    instead (a static nonlinearity of the sensors: Gaussian bumps of the measured states,
-   :meth:`~sk_offwhite.RadialBasis.from_data`, spread over the augmented physics'
+   [`from_data`][sk_offwhite.RadialBasis.from_data], spread over the augmented physics'
    simulated range).
 6. **Never worse.** Every final model is cross-validated the same way; ``result.chosen``
    names the CV-best, and a model is never preferred to one with a lower CV error.
 
-Every fit that fails (a candidate, a fold, a :math:`\gamma`) becomes a line of
+Every fit that fails (a candidate, a fold, a $\gamma$) becomes a line of
 ``result.failures`` and the loop goes on; warnings are re-issued with the name of the fit
 they come from. Cross-validation holds out contiguous blocks of the estimation record; each
 held-out block's initial state is estimated from its first ``init_window`` samples, which
-are not scored (:func:`~sk_offwhite.loop.held_out_rmse`). Validation data, when given, are
+are not scored ([`held_out_rmse`][sk_offwhite.loop.held_out_rmse]). Validation data, when given, are
 only scored.
 """
 
@@ -98,11 +98,12 @@ __all__ = [
 
 @dataclass(frozen=True)
 class LoopSettings:
-    r"""Settings of :func:`close_the_loop`, all applied on the estimation record only.
+    r"""Settings of [`close_the_loop`][sk_offwhite.loop.close_the_loop], all applied on the
+    estimation record only.
 
-    ``gammas`` is the grid of the (dimensionless) :math:`\gamma`; ``None`` uses
-    ``n_gammas`` values from :math:`\gamma_{max}` down to ``gamma_eps`` times it
-    (:func:`~sk_offwhite.gamma_grid`); a single value is fitted without a search.
+    ``gammas`` is the grid of the (dimensionless) $\gamma$; ``None`` uses
+    ``n_gammas`` values from $\gamma_{max}$ down to ``gamma_eps`` times it
+    ([`gamma_grid`][sk_offwhite.gamma_grid]); a single value is fitted without a search.
     ``horizon`` is the multiple-shooting window of the first stage of every fit on the
     record (the declared physics, each candidate and effect set, the final physics), each
     refined on the whole record (but a set with an effect on the output map is fitted on
@@ -118,13 +119,13 @@ class LoopSettings:
     how many of the best single candidates forward selection combines; ``min_share`` the
     fraction of the strongest term's gain a term needs to be evidence; ``n_promoted`` how
     many of the strongest terms are proposed as they are; ``fit_delta`` whether the models
-    with a sparse :math:`\delta` are fitted (they show what is left, and cost a path each);
+    with a sparse $\delta$ are fitted (they show what is left, and cost a path each);
     ``share_programs`` whether every effect set is fitted on one compiled program (a
-    :class:`~sk_offwhite.loop._switchboard.Switchboard`: less compilation, see that
+    `Switchboard`: less compilation, see that
     module; off by default: measured faster in one process, slower with workers, and its
     rounding flipped a near-tie of the backlash servo's cross-validation). The single
     candidates share one board either way, but for those with memory of their own and
-    relaxed laws (:func:`~sk_offwhite.loop._switchboard.single_effect_models`).
+    relaxed laws (`single_effect_models`).
     ``selection`` is how every choice is scored: ``"cv"``, the mean held-out RMSE over
     ``n_folds`` contiguous blocks; ``"tail"``, the held-out RMSE of the last
     ``tail_fraction`` of the record (after its ``init_window``) when the rest is
@@ -132,21 +133,21 @@ class LoopSettings:
     ``n_jobs`` processes (joblib's convention: ``None`` one, ``-1`` all cores) fit the
     held-out folds, the candidate effects and the effect sets, with the same numbers as
     one; switch the persistent compilation cache on
-    (:func:`~sk_offwhite.enable_compilation_cache`) so that they share compiled programs.
-    ``lm_scaling`` is every fit's Levenberg-Marquardt scaling (``'per-variable'``, iterates
-    that do not depend on the units, or ``'global'``; see
-    :class:`~sk_offwhite.GreyBoxSparseRegressor`). ``one_standard_error`` chooses each
-    :math:`\delta`'s :math:`\gamma` as the largest whose CV error is within one standard
+    ([`enable_compilation_cache`][sk_offwhite.enable_compilation_cache]) so that they share compiled
+    programs. ``lm_scaling`` is every fit's Levenberg-Marquardt scaling (``'per-variable'``,
+    iterates that do not depend on the units, or ``'global'``; see
+    [`GreyBoxSparseRegressor`][sk_offwhite.GreyBoxSparseRegressor]). ``one_standard_error`` chooses
+    each $\delta$'s $\gamma$ as the largest whose CV error is within one standard
     error of the lowest (the sparser model the folds cannot tell from the best; see
-    :func:`~sk_offwhite.fit_gamma_path`) instead of the lowest. ``release_programs`` drops
-    the package's compiled programs (:func:`~sk_offwhite.release_package_programs`) after
-    each stage and each phase of the effect selection, and worker processes after each of
-    their tasks: the structures fitted there are seldom fitted again, and the programs of
-    those that are are traced again (and loaded from the disk cache when it is on).
-    ``fit_output_delta`` whether, with ``fit_delta``, the augmented physics is also fitted
-    with a sparse correction of its output map, where the outputs read states (a sensor's
-    static nonlinearity; a path more), on ``output_bumps`` Gaussian bumps of each measured
-    state.
+    [`fit_gamma_path`][sk_offwhite.fit_gamma_path]) instead of the lowest. ``release_programs``
+    drops the package's compiled programs
+    ([`release_package_programs`][sk_offwhite.release_package_programs]) after each stage and each
+    phase of the effect selection, and worker processes after each of their tasks: the structures
+    fitted there are seldom fitted again, and the programs of those that are are traced again (and
+    loaded from the disk cache when it is on). ``fit_output_delta`` whether, with ``fit_delta``, the
+    augmented physics is also fitted with a sparse correction of its output map, where the outputs
+    read states (a sensor's static nonlinearity; a path more), on ``output_bumps`` Gaussian bumps of
+    each measured state.
     """
 
     gammas: tuple[float, ...] | None = None
@@ -204,15 +205,15 @@ class LoopResult:
     ``augmented_physics`` is the declared physics with the added effects (their parameters
     at their declared and proposed values), with the parameters the final model holds on the
     directions its fit leaves undetermined fixed at their fitted values
-    (:func:`hold_undetermined_directions`). ``selection`` holds ``(label, cross-validated
-    RMSE)`` of the declared physics and of every nested effect set tried; ``single_fits``
-    ``(effect name, estimation RMSE)`` of each candidate fitted alone; ``gamma_path`` and
-    ``final_gamma_path`` the support paths (:class:`~sk_offwhite.GammaPath`, ``None`` for a
-    single γ) of the two fits with δ (``with_delta`` and ``final_with_delta`` are ``None``
-    without ``fit_delta`` or when they failed). ``range_facts`` holds what the declared
+    ([`hold_undetermined_directions`][sk_offwhite.loop.hold_undetermined_directions]). ``selection``
+    holds ``(label, cross-validated RMSE)`` of the declared physics and of every nested effect set
+    tried; ``single_fits`` ``(effect name, estimation RMSE)`` of each candidate fitted alone;
+    ``gamma_path`` and ``final_gamma_path`` the support paths ([`GammaPath`][sk_offwhite.GammaPath],
+    ``None`` for a single γ) of the two fits with δ (``with_delta`` and ``final_with_delta`` are
+    ``None`` without ``fit_delta`` or when they failed). ``range_facts`` holds what the declared
     physics' simulation says of the measured outputs: their ceilings and floors
-    (:class:`~sk_offwhite.diagnose.RangeViolation`) and their repeated one-sample jumps
-    (:class:`~sk_offwhite.diagnose.OutputJump`). ``evidence`` is the physics-only fit with
+    ([`RangeViolation`][sk_offwhite.diagnose.RangeViolation]) and their repeated one-sample jumps
+    ([`OutputJump`][sk_offwhite.diagnose.OutputJump]). ``evidence`` is the physics-only fit with
     the dictionary the hypotheses come from; ``final_with_output_delta`` the augmented
     physics with a sparse correction of its output map and ``output_gamma_path`` its path
     (``None`` without ``fit_output_delta``, when the outputs do not read states, or when it
@@ -222,7 +223,7 @@ class LoopResult:
     term excepted: it is the physics it corrects); ``failures`` one line per fit that
     failed; ``notes`` what the loop decided not to use and why; ``timings`` the wall time of
     each stage in seconds (the stages are logged as they run, see
-    :mod:`~sk_offwhite.loop._progress`); ``set_fits`` each model of the ``selection`` trail
+    `_progress`); ``set_fits`` each model of the ``selection`` trail
     fitted on the whole estimation record, by its label (``None`` where that fit failed), so
     that every structural step can be scored on validation data (the report does)."""
 
@@ -293,7 +294,7 @@ def _estimator(physics, settings, *, cv=False, **params) -> GreyBoxSparseRegress
 
 
 def _processes(settings: LoopSettings | None) -> tuple:
-    """``(n_jobs, release_after)`` of :func:`~sk_offwhite._parallel.launch` for ``settings``
+    """``(n_jobs, release_after)`` of `launch` for ``settings``
     (one process, nothing released, without)."""
     return (None, False) if settings is None else (settings.n_jobs, settings.release_programs)
 
@@ -308,7 +309,7 @@ def _released(settings: LoopSettings, value):
 
 @contextmanager
 def _stage(clock: StageClock, name: str, settings: LoopSettings) -> Iterator[None]:
-    """``clock.stage(name)``, then :func:`_released`."""
+    """``clock.stage(name)``, then `_released`."""
     with clock.stage(name):
         yield
     _released(settings, None)
@@ -329,23 +330,25 @@ def held_out_splits(settings: LoopSettings, n_samples: int) -> list:
 
 
 FIT_ERRORS = (ValueError, TypeError, FloatingPointError, np.linalg.LinAlgError)
-"""What a failing fit raises: :func:`_attempt` turns these into lines of the report."""
+"""What a failing fit raises: `_attempt` turns these into lines of the report."""
 
 
 def cross_validated_rmse(physics, u, z, settings: LoopSettings | None = None) -> float:
     """The loop's score of a structure: the mean held-out free-run RMSE of ``physics``
-    (started from its parameter values) over the blocks of :func:`held_out_splits`, each
-    fold fitted with ``settings`` (its ``cv_horizon``, ``max_iter``, ``init_window``,
-    ``lm_scaling``) and scored after its ``init_window`` samples; a fold whose fit fails
-    scores ``inf``. Every effect set of :func:`close_the_loop` is scored so, from its own
-    fit on the record (:func:`warm_physics`)."""
+    (started from its parameter values) over the blocks of
+    [`held_out_splits`][sk_offwhite.loop.held_out_splits], each fold fitted with ``settings`` (its
+    ``cv_horizon``, ``max_iter``, ``init_window``, ``lm_scaling``) and scored after its
+    ``init_window`` samples; a fold whose fit fails scores ``inf``. Every effect set of
+    [`close_the_loop`][sk_offwhite.loop.close_the_loop] is scored so, from its own fit on the record
+    ([`warm_physics`][sk_offwhite.loop.warm_physics])."""
     settings = LoopSettings() if settings is None else settings
     return _cv_rmse(_estimator(physics, settings, cv=True), u, z, settings)
 
 
 def _cv_rmse(est, u, z, settings: LoopSettings) -> float:
-    """Mean held-out simulation RMSE over the blocks of :func:`held_out_splits`, the folds
-    fitted by ``settings.n_jobs`` processes (a fold whose fit fails scores ``inf``)."""
+    """Mean held-out simulation RMSE over the blocks of
+    [`held_out_splits`][sk_offwhite.loop.held_out_splits], the folds fitted by ``settings.n_jobs``
+    processes (a fold whose fit fails scores ``inf``)."""
     arguments = [
         (clone(est), u, z, train, test, settings.init_window)
         for train, test in held_out_splits(settings, len(u))
@@ -373,16 +376,16 @@ def _fold_rmse(est, u, z, train, test, init_window: int) -> float:
 def _set_cv(board, effects, warm, u, z, settings, failures):
     """CV RMSE of an effect set and its fit on the whole record (``None`` if that failed).
 
-    Each fold starts from that fit (:func:`fit_continued` from ``warm``), the model that
-    would be kept: an effect may move the declared parameters far (a sensor calibration
-    rescales the levels the outflow laws act on), and folds started from the declared
-    physics' fit would then judge the set from a start that belongs to another model.
+    Each fold starts from that fit ([`fit_continued`][sk_offwhite.loop.fit_continued] from
+    ``warm``), the model that would be kept: an effect may move the declared parameters far (a
+    sensor calibration rescales the levels the outflow laws act on), and folds started from the
+    declared physics' fit would then judge the set from a start that belongs to another model.
     A parameter is held at its fitted value on each direction of that fit the data do not
-    determine (:func:`hold_undetermined_directions`, without its refit, which would end
-    where the fit is, and without its comparison of the two CV errors, which the final
-    model makes): otherwise the folds wander along the direction, and a set is judged by
-    where its folds' fits stopped there (measured on the Cascaded Tanks' four effects: CV
-    0.1092 free, 0.1064 held; with the calibration of degree 3, 0.1133 and 0.1005)."""
+    determine ([`hold_undetermined_directions`][sk_offwhite.loop.hold_undetermined_directions],
+    without its refit, which would end where the fit is, and without its comparison of the two CV
+    errors, which the final model makes): otherwise the folds wander along the direction, and a set
+    is judged by where its folds' fits stopped there (measured on the Cascaded Tanks' four effects:
+    CV 0.1092 free, 0.1064 held; with the calibration of degree 3, 0.1133 and 0.1005)."""
     model = board.model(effects, warm)
     label = "effects " + _label(effects)
     fitted = _attempt(failures, label, _fit_set, _estimator(model, settings), effects, u, z,
@@ -395,7 +398,7 @@ def _set_cv(board, effects, warm, u, z, settings, failures):
 
 
 def _sets_cv(board, steps, u, z, settings, failures) -> list:
-    """``(label, score, fitted)`` of :func:`_set_cv` for each step's effect set, the sets
+    """``(label, score, fitted)`` of `_set_cv` for each step's effect set, the sets
     cross-validated by ``settings.n_jobs`` processes (each set's folds in its own one)."""
     labels = [_label(board.ordered(effects)) for effects, _, _ in steps]
     alone = replace(settings, n_jobs=None, release_programs=False)  # released per set
@@ -412,7 +415,7 @@ def _sets_cv(board, steps, u, z, settings, failures) -> list:
 
 
 def _set_cv_alone(board, effects, warm, u, z, settings):
-    """:func:`_set_cv` with failures of its own: ``(score, fitted, failures)``."""
+    """`_set_cv` with failures of its own: ``(score, fitted, failures)``."""
     failures = []
     score, fitted = _set_cv(board, effects, warm, u, z, settings, failures)
     return score, fitted, failures
@@ -435,7 +438,7 @@ def _trying(function, *args):
 def _attempt_all(
     failures: list, calls, settings: LoopSettings | None = None, first: int = 1, total=None
 ) -> list:
-    """:func:`_attempt` of each ``(label, function, *args)`` of ``calls``, the calls run by
+    """`_attempt` of each ``(label, function, *args)`` of ``calls``, the calls run by
     ``settings.n_jobs`` processes (this one without ``settings``); values in order
     (``None`` where a call failed). Each value is logged as it arrives when there are
     several, as the ``first``-th, ... of ``total`` (default: of ``calls``)."""
@@ -497,7 +500,8 @@ def _rmse(outputs, z: np.ndarray) -> float:
 
 
 def _effect_parameters(est, effects) -> dict:
-    """The fitted free parameters of ``effects`` in ``est``, as :class:`Parameter`."""
+    """The fitted free parameters of ``effects`` in ``est``, as
+    [`Parameter`][sk_offwhite.Parameter]."""
     return {
         name: Parameter(est.parameters_[name], spec.bounds)
         for effect in effects
@@ -508,7 +512,7 @@ def _effect_parameters(est, effects) -> dict:
 
 def _declared_parameters(est, board) -> dict:
     """The fitted free parameters of ``board``'s declared physics (none of a candidate
-    effect's), as :class:`Parameter` with the declared bounds."""
+    effect's), as [`Parameter`][sk_offwhite.Parameter] with the declared bounds."""
     switched = {name for effect in getattr(board, "board", ()) for name in effect.parameters()}
     return {
         name: Parameter(est.parameters_[name], spec.bounds)
@@ -519,25 +523,25 @@ def _declared_parameters(est, board) -> dict:
 
 def _quick_fit(board, effects, warm, u, z, settings):
     """``(estimation RMSE, fitted parameters)`` of the physics plus ``effects`` (switched on
-    on ``board``), fitted as the set is kept (:func:`_fit_set`: over ``horizon`` windows,
+    on ``board``), fitted as the set is kept (`_fit_set`: over ``horizon`` windows,
     then on the whole record) and scored by the free run of the record. The parameters are
     those of ``effects`` and of the declared physics: a set is refitted and
     cross-validated from where its own fit ended, since an effect may move the declared
     parameters far (a sensor calibration rescales the levels the outflow laws act on).
 
     Every set ends on the whole record, the protocol it is scored by: a set with an effect
-    on the output map is fitted there alone (:func:`_set_horizon`), and against fits that
+    on the output map is fitted there alone (`_set_horizon`), and against fits that
     stopped at the windows it won by its protocol, not its effect (the Coulomb drive of
-    :func:`~sk_offwhite.datasets.make_coulomb_drive`: a sensor calibration displaced the
-    constant force, the declared stiffness came back 4 % off). Fitted on the whole record
+    [`make_coulomb_drive`][sk_offwhite.datasets.make_coulomb_drive]: a sensor calibration displaced
+    the constant force, the declared stiffness came back 4 % off). Fitted on the whole record
     alone, without the windows, the ranking was fair but not robust: the same drive with
     ``max_iter=1000`` came back with a Coulomb level of 1.30 for 3.
 
     A proposed effect the record never exercises runs its level off toward infinity (the
     Cascaded Tanks' pump limits, to 10¹¹-10⁴¹ V): that is the ranking's finding, the set
     scoring as the one without it, so these fits do not raise
-    :class:`~sk_offwhite.RunawayParameterWarning`; the declared physics' fit and the
-    final model's do."""
+    [`RunawayParameterWarning`][sk_offwhite.RunawayParameterWarning]; the declared physics' fit and
+    the final model's do."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RunawayParameterWarning)
         est = _fit_set(_estimator(board.model(effects, warm), settings), effects, u, z, settings)
@@ -558,8 +562,8 @@ def _set_horizon(effects, horizon: int | None) -> int | None:
 
 
 def _fit_set(est: GreyBoxSparseRegressor, effects, u, z, settings: LoopSettings):
-    """:func:`fit_continued` of ``est`` (the physics with ``effects``) over the set's
-    shooting window (:func:`_set_horizon`): how an effect set and the final augmented
+    """[`fit_continued`][sk_offwhite.loop.fit_continued] of ``est`` (the physics with ``effects``)
+    over the set's shooting window (`_set_horizon`): how an effect set and the final augmented
     physics are fitted on the record."""
     return fit_continued(est, u, z, _set_horizon(effects, settings.horizon))
 
@@ -574,7 +578,7 @@ def _starts(warm: dict, effect, params: dict) -> list[dict]:
 
 
 def _best_of(board, sets, u, z, settings, failures) -> list:
-    """For each ``(effects, starts)`` of ``sets``, the :func:`_quick_fit` of lowest
+    """For each ``(effects, starts)`` of ``sets``, the `_quick_fit` of lowest
     estimation RMSE over its starts (``None`` if every one fails); all the fits run by
     ``settings.n_jobs`` processes."""
     calls = [
@@ -609,7 +613,7 @@ def _rank_alone(physics, candidates, u, z, settings, failures):
     ``tolerance``.
 
     The candidates are fitted on a switchboard where they can share one
-    (:func:`~sk_offwhite.loop._switchboard.single_effect_models`; with ``share_programs``
+    (`single_effect_models`; with ``share_programs``
     all on one), in this process: each fit compiles nothing after the first, and a
     worker would compile the board's programs again for itself. The others are fitted by
     ``settings.n_jobs`` processes, each on its own model."""
@@ -632,7 +636,7 @@ def _rank_alone(physics, candidates, u, z, settings, failures):
 
 
 def _attempt_split(failures: list, calls, here, settings: LoopSettings) -> list:
-    """:func:`_attempt_all` of ``calls``, those where ``here`` is true in this process and
+    """`_attempt_all` of ``calls``, those where ``here`` is true in this process and
     the others by ``settings.n_jobs`` processes; values in the order of ``calls``."""
     local = [call for call, flag in zip(calls, here, strict=True) if flag]
     remote = [call for call, flag in zip(calls, here, strict=True) if not flag]
@@ -651,8 +655,8 @@ def _forward(board, ranked, u, z, settings, base_rmse, failures):
     """Forward selection: ``[(effects, warm parameters, estimation RMSE)]`` for each step.
 
     The pool holds the ``beam`` best candidates alone of distinct mechanisms (one variant
-    of each, :func:`_representatives`; a set never holds two variants of one) and
-    every relaxed declared law (:class:`~sk_offwhite.RelaxedLaw`): a law the user marked
+    of each, `_representatives`; a set never holds two variants of one) and
+    every relaxed declared law ([`RelaxedLaw`][sk_offwhite.RelaxedLaw]): a law the user marked
     relaxable is always tried on top of the effects chosen so far, whose absence may be
     what made it look useless alone.
     """
@@ -694,7 +698,7 @@ def _forward(board, ranked, u, z, settings, base_rmse, failures):
 
 def _representatives(ranked, tolerance: float) -> list:
     """``ranked`` (``(RMSE, candidate, parameters)``, best first) with one variant per
-    mechanism (:attr:`~sk_offwhite.Effect.mechanism`), in the place of the mechanism's
+    mechanism ([`mechanism`][sk_offwhite.Effect.mechanism]), in the place of the mechanism's
     best: the variant with the fewest parameters among those within ``tolerance`` of that
     best (an overflow whose excess leaves the system rather than one with a fitted
     fraction, unless the fraction is worth it)."""
@@ -746,10 +750,11 @@ def _nested(ranked, base_rmse, settings):
 
 
 def _capped(candidates: list, limit: int | None) -> list:
-    """The candidates of the first ``limit`` mechanisms (:attr:`~sk_offwhite.Effect.mechanism`)
-    in the order proposed, every variant of those mechanisms included: a cap counts what
-    is tried, not how many shapes of it are (a saturation's two, an overflow's
-    destinations), so proposing one more variant does not push another effect out."""
+    """The candidates of the first ``limit`` mechanisms
+    ([`mechanism`][sk_offwhite.Effect.mechanism]) in the order proposed, every variant of those
+    mechanisms included: a cap counts what is tried, not how many shapes of it are (a saturation's
+    two, an overflow's destinations), so proposing one more variant does not push another effect
+    out."""
     if limit is None:
         return list(candidates)
     kept, mechanisms = [], []
@@ -808,7 +813,7 @@ def _select_effects(
     """Effect sets by forward selection and nested by single gain, chosen by CV RMSE.
 
     A set's effects are composed in the order of the single fits; with ``share_programs``
-    all sets are fitted on one :class:`~sk_offwhite.loop._switchboard.Switchboard`.
+    all sets are fitted on one `Switchboard`.
     Returns the chosen effects (in that order), the CV trail (starting with
     ``declared_cv``, computed when ``None``), the single-fit RMSEs, the effects' fitted
     parameters (the start of the final fit) and each set's fit on the whole record by
@@ -842,7 +847,7 @@ def _select_effects(
 
 
 def _with_richer(effects) -> list:
-    """``effects`` with each one's richer variant (:meth:`~sk_offwhite.Effect.richer`)
+    """``effects`` with each one's richer variant ([`richer`][sk_offwhite.Effect.richer])
     right after it: the sets the refinement may reach."""
     pairs = ((effect, effect.richer()) for effect in effects)
     return [variant for pair in pairs for variant in pair if variant is not None]
@@ -850,7 +855,7 @@ def _with_richer(effects) -> list:
 
 class _Chosen(NamedTuple):
     """A set the refinement starts a round from: its effects, their parameters, its CV
-    RMSE and its :func:`_quick_fit` (``None``: not made yet)."""
+    RMSE and its `_quick_fit` (``None``: not made yet)."""
 
     effects: tuple
     params: dict
@@ -859,13 +864,13 @@ class _Chosen(NamedTuple):
 
 
 def _swap(board, ranked, chosen, u, z, settings, failures, fits):
-    """Stepwise refinement of the chosen set, in rounds (:func:`_swap_round`) until a round
+    """Stepwise refinement of the chosen set, in rounds (`_swap_round`) until a round
     keeps its set or reaches one an earlier round left: the set a move reached is refined
     in turn (on the Cascaded Tanks the first round adds the sensor calibration to three
     effects, the second refines it into the cubic one). Every kept move lowers the CV
     RMSE by ``min_gain`` or makes the set smaller, so the rounds end.
 
-    ``chosen``: ``(effects, parameters, CV RMSE)`` of the set (a :class:`_Chosen`). Returns
+    ``chosen``: ``(effects, parameters, CV RMSE)`` of the set (a `_Chosen`). Returns
     the effects, their parameters and the CV trail rows of the moves tried (their fits on
     the whole record are added to ``fits``).
     """
@@ -883,7 +888,7 @@ def _swap_round(board, ranked, chosen: _Chosen, u, z, settings, failures, fits):
     """One round of the stepwise refinement of the chosen set: each other candidate of the
     ``beam`` added to it (while it has fewer than ``max_effects``) or exchanged for one of
     its effects, each of its effects exchanged for its richer variant
-    (:func:`_refinements`), and each of its effects dropped, started from the set's
+    (`_refinements`), and each of its effects dropped, started from the set's
     parameters. An addition or exchange whose fit lowers the estimation RMSE (by
     ``min_gain`` for an addition), and a removal, or an exchange for an effect of fewer
     parameters, whose fit on the whole record misses the data by no more than the chosen
@@ -953,7 +958,7 @@ def _earlier_rmse(fits, board, effects, u, z) -> float:
 def _worth_fitting(trial, effects, rmse: float, earlier: float) -> bool:
     """Whether a move of the refinement from ``effects`` (estimation RMSE ``rmse``) to
     ``trial`` is fitted, given the estimation RMSE ``earlier`` of the set's earlier fit
-    (:func:`_earlier_rmse`): a set not cross-validated yet, or an addition whose earlier
+    (`_earlier_rmse`): a set not cross-validated yet, or an addition whose earlier
     fit missed the record by more than ``effects`` does. A set holding ``effects`` can fit
     the record at least as well as they do; when its fit did not, that fit ended in a poor
     minimum, and the set is fitted again from the chosen set's parameters (and scored
@@ -966,8 +971,8 @@ def _worth_fitting(trial, effects, rmse: float, earlier: float) -> bool:
 
 def _moves(effects, warm, ranked, rmse, lighter, settings, board):
     """``(effects, starts, RMSE to beat)`` of each addition and exchange of the beam's
-    other named effects (see :func:`_starts`) and of each refinement
-    (:func:`_refinements`), to beat the set's estimation RMSE ``rmse``, then of each
+    other named effects (see `_starts`) and of each refinement
+    (`_refinements`), to beat the set's estimation RMSE ``rmse``, then of each
     removal, to beat ``lighter`` (the bar of a smaller set).
     Promoted dictionary terms are left to forward selection, where they must beat a named
     effect by ``tolerance``: a term can always absorb a little more, and would take the
@@ -981,7 +986,7 @@ def _moves(effects, warm, ranked, rmse, lighter, settings, board):
 
 
 def _additions_and_exchanges(effects, warm, ranked, rmse, lighter, settings):
-    """The additions and exchanges of :func:`_moves` (a set never holds two variants of
+    """The additions and exchanges of `_moves` (a set never holds two variants of
     one mechanism). An exchange for an effect of fewer parameters makes a lighter set, and
     has the bar of one (``lighter``, when it is above ``rmse``): on the convective block
     with its exponent declared relaxable, the relaxed law fitted 0.02 % worse than the
@@ -1007,11 +1012,11 @@ def _additions_and_exchanges(effects, warm, ranked, rmse, lighter, settings):
 
 def _refinements(effects, warm, rmse, board):
     """``(effects, starts, RMSE to beat)`` with one effect exchanged for its richer
-    variant, started where it reproduces the effect (:meth:`~sk_offwhite.Effect.richer`,
-    :meth:`~sk_offwhite.Effect.richer_start`): the variant nests the effect, so its fit
+    variant, started where it reproduces the effect ([`richer`][sk_offwhite.Effect.richer],
+    [`richer_start`][sk_offwhite.Effect.richer_start]): the variant nests the effect, so its fit
     on the record can only match or lower ``rmse``, and the cross-validation decides
     whether the extra freedom is worth ``min_gain``. Only the variants on the ``board``
-    (:func:`_with_richer`: one step richer than each proposed effect)."""
+    (`_with_richer`: one step richer than each proposed effect)."""
     for effect in effects:
         richer = effect.richer()
         if richer is None or not board.ordered((richer,)):
@@ -1055,7 +1060,7 @@ def _empty_delta(est) -> bool:
 
 def _candidates(physics, library, hypotheses, facts, run, u, z, settings):
     """Catalogue effects and promoted dictionary terms, one per name, without those of a
-    mechanism the physics already models (:func:`_not_modelled`)."""
+    mechanism the physics already models (`_not_modelled`)."""
     dt = time_step(physics)
     names = list(physics.state_names) + list(physics.input_names)
     n_declared, kinds = _declared_kinds(physics)
@@ -1084,7 +1089,7 @@ def _candidates(physics, library, hypotheses, facts, run, u, z, settings):
 
 
 def _declared_kinds(physics) -> tuple[int, Kinds]:
-    """The number of declared states and their kinds (:func:`physical_kinds`), the hidden
+    """The number of declared states and their kinds (`physical_kinds`), the hidden
     states' left out: effects act on declared states only. An effect's hidden states are
     no levels or velocities of the plant; on a physics with a dead time, whose 25 past
     commands of a one-signed generic input read as levels, the overflows between them
@@ -1096,17 +1101,18 @@ def _declared_kinds(physics) -> tuple[int, Kinds]:
 
 
 def _promoted(physics, hypotheses, library, names, dt: float, settings) -> list:
-    """The strongest dictionary terms as candidates (:func:`promoted_terms`), none on a
-    physics with hidden states (an effect with memory, :mod:`sk_offwhite._hidden`): the
-    dictionary reads the commands, where a term in the declared step would read the
-    input the effects deliver (a backlash's, a delay's), another function."""
+    """The strongest dictionary terms as candidates
+    ([`promoted_terms`][sk_offwhite.loop.promoted_terms]), none on a physics with hidden states (an
+    effect with memory, `sk_offwhite._hidden`): the dictionary reads the commands, where a term in
+    the declared step would read the input the effects deliver (a backlash's, a delay's), another
+    function."""
     if physics.n_states > n_declared_states(physics):
         return []
     return promoted_terms(hypotheses, library, names, dt, settings.n_promoted)
 
 
 def _not_modelled(physics, candidates: list) -> list:
-    """``candidates`` without those whose mechanism (:attr:`~sk_offwhite.Effect.mechanism`)
+    """``candidates`` without those whose mechanism ([`mechanism`][sk_offwhite.Effect.mechanism])
     an effect of ``physics`` already models: run on an augmented physics (its own result,
     say), the loop would otherwise propose an effect it holds, whose parameters clash with
     its own, or a second variant of one mechanism, which no effect set may hold."""
@@ -1125,7 +1131,7 @@ def _read_evidence(physics, library, u, z, settings, failures):
 
 def _scored_delta(key, physics, library, u, z, settings, failures, evidence=None, targets=None):
     """``(estimator, path, CV RMSE)`` of ``physics`` + δ (``None, None, inf`` on failure);
-    ``targets`` as for :func:`_fit_delta`."""
+    ``targets`` as for `_fit_delta`."""
     fitted = _attempt(
         failures, MODEL_LABELS[key], _fit_delta, physics, library, u, z, settings, evidence,
         targets,
@@ -1190,13 +1196,13 @@ def _fit_declared(physics, u, z, settings):
 
 
 def _start_of_later_fits(physics, baseline: GreyBoxSparseRegressor, u, z):
-    """The physics started from the declared fit (:func:`warm_physics`), but for the
-    parameters that fit does not determine, which start from their declared values; and
+    """The physics started from the declared fit ([`warm_physics`][sk_offwhite.loop.warm_physics]),
+    but for the parameters that fit does not determine, which start from their declared values; and
     ``{name: fitted value}`` of those.
 
     Along a flat direction the fitted point is arbitrary, and a parameter that ran off
     toward a limit can leave the later fits no way back: the RC circuit behind a diode
-    (:func:`~sk_offwhite.datasets.make_diode_rc`) fitted its load's time constant to
+    ([`make_diode_rc`][sk_offwhite.datasets.make_diode_rc]) fitted its load's time constant to
     3.7·10²⁴ s (the charging path's loss mimicked the load), where the curve no longer
     depends on it, and from there the loop added a promoted ``e**2`` term (validation
     0.86 V) instead of the diode's drop (0.020 V from the declared 0.075 s)."""
@@ -1216,9 +1222,9 @@ direction may show (holding it there leaves the fit as it was, up to rounding)."
 
 def _held_on_fit(physics, est: GreyBoxSparseRegressor, u, z, effects) -> tuple[dict, tuple]:
     """``(held, directions)``: the directions of ``est``'s fit (of ``physics``, ``effects``
-    added) the data do not determine (:func:`~sk_offwhite.loop._gauge.undetermined_directions`;
+    added) the data do not determine (`undetermined_directions`;
     none when they cannot be computed) and ``{name: fitted value}`` of the parameter held
-    on each (:func:`~sk_offwhite.loop._gauge.held_parameters`)."""
+    on each (`held_parameters`)."""
     try:
         directions = fit_undetermined_directions(est, u, z)
     except FIT_ERRORS:
@@ -1234,12 +1240,12 @@ def hold_undetermined_directions(
     not determine.
 
     Where an added effect leaves a direction along which the relative standard error of
-    the fit is at least :data:`~sk_offwhite.loop._gauge.MAX_RELATIVE_ERROR`, or its
+    the fit is at least `MAX_RELATIVE_ERROR`, or its
     Gauss-Newton matrix singular (a calibrated level whose scale nothing else fixes: see
-    :mod:`~sk_offwhite.loop._gauge`), the added effect's parameter that loads most on the
+    `_gauge`), the added effect's parameter that loads most on the
     direction is fixed at its fitted value, and the physics is refitted from ``est`` as
     the loop fits an effect set and cross-validated. The fit is kept when its estimation
-    RMSE rose by at most :data:`HOLD_SLACK` and its CV RMSE by at most
+    RMSE rose by at most `HOLD_SLACK` and its CV RMSE by at most
     ``settings.tolerance`` over ``cv`` (a model with fewer free parameters is preferred
     within it, as a smaller effect set is).
 
@@ -1264,7 +1270,7 @@ def hold_undetermined_directions(
     held_cv : float, default=None
         The CV RMSE of ``physics`` with the parameters held (computed when ``None``): the
         loop's trail holds it, each effect set being cross-validated so
-        (:func:`close_the_loop`).
+        ([`close_the_loop`][sk_offwhite.loop.close_the_loop]).
 
     Returns
     -------
@@ -1297,7 +1303,8 @@ def hold_undetermined_directions(
 def _holding_as(template, fitted):
     """``template`` with the parameters that ``fitted`` (the same structure) holds fixed
     and ``template`` leaves free fixed as in ``fitted``: the augmented physics as the final
-    model has it (:func:`hold_undetermined_directions`)."""
+    model has it
+    ([`hold_undetermined_directions`][sk_offwhite.loop.hold_undetermined_directions])."""
     held = {
         name: spec.value
         for name, spec in fitted.parameters.items()
@@ -1308,7 +1315,7 @@ def _holding_as(template, fitted):
 
 def _undetermined(est: GreyBoxSparseRegressor, u, z) -> list[str]:
     """Names of the variables of ``est``'s fit with an infinite standard error (on a flat
-    direction of the relative Hessian: :func:`~sk_offwhite.certify.identifiability`);
+    direction of the relative Hessian: [`identifiability`][sk_offwhite.certify.identifiability]);
     none when that cannot be computed."""
     try:
         with warnings.catch_warnings():
@@ -1337,7 +1344,7 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
     LoopResult
         The fitted models, the evidence, the selection trail, the CV errors of the final
         models and the failures. Score validation data with
-        :func:`~sk_offwhite.loop.score_models`.
+        [`score_models`][sk_offwhite.loop.score_models].
 
     Raises
     ------
@@ -1401,10 +1408,11 @@ def _record_facts(physics, z, run) -> list:
 
 def _augmented_fit(start, selection, baseline, declared_cv, u, z, settings, failures):
     """``(augmented physics, its fit, its CV RMSE, note)`` for the effects of
-    ``selection`` (:func:`_select_effects`' value) added to ``start``: the fit on the whole
-    record (:func:`_final_fit`; without effects, or when it fails, the declared physics'
+    ``selection`` (`_select_effects`' value) added to ``start``: the fit on the whole
+    record (`_final_fit`; without effects, or when it fails, the declared physics'
     fit ``baseline`` and its CV RMSE ``declared_cv``), with a parameter held on each
-    direction it leaves undetermined (:func:`hold_undetermined_directions`, whose note it
+    direction it leaves undetermined
+    ([`hold_undetermined_directions`][sk_offwhite.loop.hold_undetermined_directions], whose note it
     returns; ``None`` without)."""
     effects, trail, _, warm, set_fits = selection
     augmented = augment(start, *effects).with_parameters(**warm)
@@ -1440,8 +1448,8 @@ def _corrected_fits(augmented, final, library, measured, u, z, settings, failure
 
 
 def _loop_result(physics, augmented_physics, fits: dict, found: dict) -> LoopResult:
-    """The :class:`LoopResult` of ``fits`` (``{key: (estimator, path, CV RMSE)}``, the
-    models of :data:`MODEL_LABELS` that were fitted) and of what else the loop ``found``
+    """The [`LoopResult`][sk_offwhite.loop.LoopResult] of ``fits`` (``{key: (estimator, path, CV
+    RMSE)}``, the models of `MODEL_LABELS` that were fitted) and of what else the loop ``found``
     (the other fields, by name); the CV-best model is chosen here."""
     models = {key: fit[0] for key, fit in fits.items()}
     paths = {key: fit[1] for key, fit in fits.items()}
@@ -1498,7 +1506,8 @@ def _output_names(physics, n_outputs: int) -> list[str]:
 
 
 def analyse_model(est, u, z, physics, *, x0=None, z_init_window=0):
-    """Residual report of a fitted model on one record (see :mod:`sk_offwhite.diagnose`)."""
+    """Residual report of a fitted model on one record (see
+    [`sk_offwhite.diagnose`][sk_offwhite.diagnose])."""
     u, z = check_record(u, z)
     z_init = z[:z_init_window] if z_init_window else None
     run = est.simulate(u, x0=x0, z_init=z_init)

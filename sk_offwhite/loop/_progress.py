@@ -26,7 +26,7 @@ class StageClock:
 
     @contextmanager
     def stage(self, name: str) -> Iterator[None]:
-        """Log ``name`` as it starts and ends, and add its wall time to :attr:`seconds`."""
+        """Log ``name`` as it starts and ends, and add its wall time to `seconds`."""
         logger.info("%s ...", name)
         start = time.perf_counter()
         try:

@@ -32,9 +32,9 @@ def held_out_rmse(init_window: int):
     The block's initial state is estimated from its first ``init_window`` measured samples
     (``predict(u, z_init=...)``), which are not scored: the ``init_window`` protocol applied
     to a cross-validation block. A non-finite simulation scores ``-DIVERGED_FACTOR *
-    std(z)`` (:data:`~sk_offwhite._path.DIVERGED_FACTOR`), so one diverging fold ranks a
+    std(z)`` (`DIVERGED_FACTOR`), so one diverging fold ranks a
     model last without making the mean undefined. The same function scores the held-out
-    blocks of :func:`~sk_offwhite.fit_gamma_path` (``GammaPath.cv_rmse``).
+    blocks of [`fit_gamma_path`][sk_offwhite.fit_gamma_path] (``GammaPath.cv_rmse``).
     """
 
     def scorer(estimator, u, z) -> float:
@@ -44,7 +44,7 @@ def held_out_rmse(init_window: int):
 
 
 def _protocol_metrics(est, u, z, protocol: str, init_window: int) -> dict:
-    """:func:`~sk_offwhite.diagnose.simulation_metrics` of one protocol, or, when the
+    """[`simulation_metrics`][sk_offwhite.diagnose.simulation_metrics] of one protocol, or, when the
     simulation diverges, ``overall`` with ``rmse`` ``inf``, ``fit_percent`` ``-inf`` and
     ``diverged_at`` (the first non-finite sample; the simulation has warned)."""
     u, z = check_record(u, z)
@@ -68,7 +68,7 @@ def score_models(result, records: dict, init_window: int = 50) -> list[dict]:
     model whose simulation of a record diverges is scored, not dropped: ``rmse`` ``inf``,
     ``fit_percent`` ``-inf`` and ``diverged_at`` the first sample that is not finite
     (``None`` for a finite simulation), with a
-    :class:`~sk_offwhite.DivergenceWarning` from the simulation.
+    [`DivergenceWarning`][sk_offwhite.DivergenceWarning] from the simulation.
     """
     rows = []
     for key, label in MODEL_LABELS.items():

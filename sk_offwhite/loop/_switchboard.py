@@ -1,9 +1,9 @@
 """The models of the effect sets the loop tries: one per set, or one for all of them.
 
-:class:`SeparateModels` builds each set's model with :func:`~sk_offwhite.augment`: a new
+`SeparateModels` builds each set's model with [`augment`][sk_offwhite.augment]: a new
 ``jit`` structure per set, compiled again for every record layout it is fitted on (the
-candidate fits, the CV folds, the initial-state estimation). :class:`Switchboard` puts every
-candidate behind a switch (:class:`~sk_offwhite.Switched`) in one model, so the sets differ
+candidate fits, the CV folds, the initial-state estimation). `Switchboard` puts every
+candidate behind a switch ([`Switched`][sk_offwhite.Switched]) in one model, so the sets differ
 only in parameter values: a switched-off effect is not computed, and its parameters are held
 where they are (fixed), so a set's fit has the free variables it has on its own model. The
 solver pads its free vector to one size for every set (``Model.free_multiple``), so the
@@ -19,8 +19,8 @@ two worker processes the board was slower (a first run 115.8 s against 91.0 s, w
 cache filled 32.9-40.8 s against 30.2-34.7 s): each worker compiles or loads the board's
 programs for itself, where separate models are each compiled by the one worker that fits
 them. And the board's rounding can flip a
-near-tie: on the backlash servo (:func:`~sk_offwhite.datasets.make_backlash_servo`, 1000
-samples, 2 folds, ``max_iter=100``) separate models choose the backlash alone (CV RMSE
+near-tie: on the backlash servo ([`make_backlash_servo`][sk_offwhite.datasets.make_backlash_servo],
+1000 samples, 2 folds, ``max_iter=100``) separate models choose the backlash alone (CV RMSE
 0.00106, with friction 0.00112). The board chose the backlash with friction and stiffness
 (0.00105, the backlash alone 0.00113) while its backlash's hidden state was masked with
 ``jnp.where``, and the backlash alone (0.00104, with friction 0.00114) once it went
@@ -29,7 +29,7 @@ agrees with its own model's to 1.4e-7 relative: the folds' fits, stopped at
 ``max_iter``, amplify the rounding. The loop therefore uses separate models for the effect
 sets unless ``LoopSettings(share_programs=True)``.
 
-The single candidates are another matter (:func:`single_effect_models`). Each is fitted
+The single candidates are another matter (`single_effect_models`). Each is fitted
 once, on the estimation record (no fold), and a candidate's fit compiles for seconds and
 computes for a tenth of one: on the Cascaded Tanks (1024 samples, jax 0.10.2, 2 CPU cores)
 a candidate's fit on its own model took 2.9-3.7 s, 2.4-2.9 s of it XLA compilation. On one
@@ -78,7 +78,7 @@ class SeparateModels(NamedTuple):
 class Switchboard(NamedTuple):
     """The declared physics with every candidate effect switched off, and the switches.
 
-    Relaxed laws (:class:`~sk_offwhite.RelaxedLaw`) need no switch: they change no
+    Relaxed laws ([`RelaxedLaw`][sk_offwhite.RelaxedLaw]) need no switch: they change no
     program, only which parameters are fitted, and are applied to the board as they are.
     """
 
@@ -110,14 +110,14 @@ class Switchboard(NamedTuple):
 
 
 def effect_sets(physics: PhysicsModel, effects, shared: bool) -> Switchboard | SeparateModels:
-    """A :class:`Switchboard` when ``shared``, else :class:`SeparateModels`."""
+    """A `Switchboard` when ``shared``, else `SeparateModels`."""
     return (Switchboard if shared else SeparateModels).of(physics, effects)
 
 
 def single_effect_models(physics: PhysicsModel, effects) -> list:
     """For each of ``effects``, what its fit alone builds its model from: one
-    :class:`Switchboard` of the effects that can share it, whose fits then share one
-    compiled program per layout, and :class:`SeparateModels` for the others (all of them
+    `Switchboard` of the effects that can share it, whose fits then share one
+    compiled program per layout, and `SeparateModels` for the others (all of them
     when fewer than two would share the board).
 
     An effect with memory of its own (hidden states) would add them to every fit on the
