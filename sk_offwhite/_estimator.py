@@ -19,7 +19,6 @@ from sklearn.utils.validation import _check_feature_names, _check_sample_weight,
 from ._backend import to_device
 from ._basis import compile_basis
 from ._equations import format_equations
-from ._hidden import n_declared_states
 from ._initial import estimate_initial_state
 from ._objective import CostWeights
 from ._optim import LM_SCALINGS
@@ -43,6 +42,7 @@ from ._validation import (
     is_experiment_list,
 )
 from ._verdict import runaway_parameters
+from .effects._hidden import n_declared_states
 
 __all__ = ["GreyBoxSparseRegressor"]
 

@@ -14,15 +14,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._backend import to_device
-from ._effects import Switched
-from ._hidden import (
-    hidden_bounds,
-    hidden_start,
-    input_determined,
-    n_declared_states,
-    sensor_readings,
-    with_input_determined,
-)
 from ._layout import Layout
 from ._lm_device import PAD_TO, levenberg_marquardt_on_device, padded_size
 from ._objective import CostWeights
@@ -34,6 +25,15 @@ from ._sparsity import SparseOptions, fit_sparse, output_scale, state_scale
 from ._start import continuation_start, within_reach
 from ._structured import structured_levenberg_marquardt
 from ._verdict import judged, needs_restart, with_fit_term
+from .effects import Switched
+from .effects._hidden import (
+    hidden_bounds,
+    hidden_start,
+    input_determined,
+    n_declared_states,
+    sensor_readings,
+    with_input_determined,
+)
 
 __all__ = [
     "FitOutcome",
