@@ -10,7 +10,6 @@ import pytest
 from conftest import tanks_physics
 
 from sk_offwhite import GreyBoxSparseRegressor
-from sk_offwhite._lm_device import _run_on_device
 from sk_offwhite._problem import build_model
 from sk_offwhite._rollout import free_run
 from sk_offwhite.datasets import cascaded_tanks_physics, make_cascaded_tanks, make_coulomb_drive
@@ -35,6 +34,7 @@ from sk_offwhite.loop import LoopSettings
 from sk_offwhite.loop._loop import _quick_fit, _rank_alone
 from sk_offwhite.loop._switchboard import SeparateModels, Switchboard, single_effect_models
 from sk_offwhite.loop._variants import mechanism
+from sk_offwhite.solvers._device import _run_on_device
 
 
 def _theta(physics):

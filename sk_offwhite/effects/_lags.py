@@ -1,6 +1,6 @@
 r"""How a command reaches the plant late, and how a sensor reads late: first-order lags of an
-input ([`InputLag`][sk_offwhite.InputLag]) and of an output ([`SensorLag`][sk_offwhite.SensorLag]) on
-one exact zero-order-hold law, and a dead time ([`InputDelay`][sk_offwhite.InputDelay]). Each
+input ([`InputLag`][sk_offwhite.InputLag]) and of an output ([`SensorLag`][sk_offwhite.SensorLag])
+on one exact zero-order-hold law, and a dead time ([`InputDelay`][sk_offwhite.InputDelay]). Each
 carries hidden states.
 
 For a lag of time constant $\tau$ at sampling time $T_s$, held over each sample,

@@ -60,7 +60,6 @@ from .._cache import release_package_programs
 from .._equations import output_name
 from .._estimator import GreyBoxSparseRegressor, RunawayParameterWarning
 from .._kinds import Kinds, physical_kinds
-from .._optim import LM_SCALINGS
 from .._parallel import gather, launch, start_workers
 from .._path import GammaPath, fit_gamma_path
 from .._physics import Parameter, measured_states
@@ -80,6 +79,7 @@ from ..effects import DictionaryTerm, augment
 from ..effects._augment import time_step
 from ..effects._hidden import n_declared_states
 from ..effects._laws import relaxations
+from ..solvers._rules import LM_SCALINGS
 from ._candidates import Candidate, promoted_terms, propose_effects, unique_by_name
 from ._gauge import fit_undetermined_directions, held_note, held_parameters, holding
 from ._hypotheses import evidence_hypotheses, form_hypotheses
@@ -1106,9 +1106,9 @@ def _declared_kinds(physics) -> tuple[int, Kinds]:
 def _promoted(physics, hypotheses, library, names, dt: float, settings) -> list:
     """The strongest dictionary terms as candidates
     ([`promoted_terms`][sk_offwhite.loop.promoted_terms]), none on a physics with hidden states (an
-    effect with memory, `sk_offwhite.effects._hidden`): the dictionary reads the commands, where a term in
-    the declared step would read the input the effects deliver (a backlash's, a delay's), another
-    function."""
+    effect with memory, `sk_offwhite.effects._hidden`): the dictionary reads the commands, where a
+    term in the declared step would read the input the effects deliver (a backlash's, a delay's),
+    another function."""
     if physics.n_states > n_declared_states(physics):
         return []
     return promoted_terms(hypotheses, library, names, dt, settings.n_promoted)
