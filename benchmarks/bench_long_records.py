@@ -9,7 +9,7 @@ line:
   physics, 2 % output noise), ``horizon=32`` and every other setting at its default:
   fit time (compilation included), training R², ``converged_`` and peak RSS. With more than
   100 free variables Levenberg-Marquardt uses the window-coloured Jacobian
-  (``sk_offwhite._structured``); before it, ``solver='auto'`` switched to Adam above 400
+  (``sk_offwhite.solvers._coloured``); before it, ``solver='auto'`` switched to Adam above 400
   free variables.
 * **the loop at scale** (``--loop``) — ``close_the_loop`` on the Coulomb drive
   (``make_coulomb_drive``, SI units, 1 kHz) at 25 000 and 100 000 samples, without the
@@ -17,7 +17,7 @@ line:
   validation RMSE (``init_window``) of the declared and augmented physics, peak RSS.
 * **exploding start** — x⁺ = −0.2x + u (white input, 1 % output noise) fitted from the
   unstable guess a = 2, single shooting and ``horizon=20``: the restart from short windows
-  (``sk_offwhite._start``) and the fitted a.
+  (``sk_offwhite.fitting._start``) and the fitted a.
 """
 
 from __future__ import annotations

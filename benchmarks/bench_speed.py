@@ -486,7 +486,7 @@ def _device_run(free0, problem, model, layout, *, max_iter, tol, scaling, **_):
 def _captured_solver_calls():
     """The Levenberg-Marquardt runs made in this process inside the block: a list of their
     ``(args, kwargs, SolverResult)``."""
-    from sk_offwhite import _problem
+    from sk_offwhite.fitting import _problem
 
     solver, calls = _problem.levenberg_marquardt_on_device, []
 

@@ -1,18 +1,14 @@
 """sk_offwhite: physics-based multi-step system identification with sparse corrections."""
 
-from ._backend import enable_fused_loops
-from ._basis import RidgeBasis, compile_basis
-from ._cache import enable_compilation_cache, release_compiled_programs, release_package_programs
 from ._estimator import (
     DivergenceWarning,
     GreyBoxSparseRegressor,
     RunawayParameterWarning,
     expected_failed_checks,
 )
+from ._estimator_cv import GreyBoxSparseRegressorCV
 from ._path import GammaPath, fit_gamma_path, gamma_grid
-from ._physics import Parameter, PhysicsModel
-from ._radial import RadialBasis
-from ._splitters import SequenceSplit, SequenceWarning
+from .dictionaries import RadialBasis, RidgeBasis, compile_basis
 from .effects import (
     AdditiveEffect,
     Backlash,
@@ -42,6 +38,15 @@ from .effects import (
     augment,
     switched,
 )
+from .model import Parameter, PhysicsModel
+from .model_selection import SequenceSplit, SequenceWarning
+from .runtime import (
+    enable_compilation_cache,
+    enable_fused_loops,
+    release_compiled_programs,
+    release_package_programs,
+)
+from .solvers import LevenbergMarquardt, Optax
 
 __all__ = [
     "AdditiveEffect",
@@ -55,10 +60,13 @@ __all__ = [
     "Friction",
     "GammaPath",
     "GreyBoxSparseRegressor",
+    "GreyBoxSparseRegressorCV",
     "InputDelay",
     "InputLag",
     "InputSaturation",
+    "LevenbergMarquardt",
     "Leak",
+    "Optax",
     "OutputOffset",
     "OutputSaturation",
     "Overflow",

@@ -16,22 +16,6 @@ from sklearn.utils import Bunch, metadata_routing
 from sklearn.utils._param_validation import Interval, StrOptions
 from sklearn.utils.validation import _check_feature_names, _check_sample_weight, check_is_fitted
 
-from ._backend import to_device
-from ._basis import compile_basis
-from ._equations import format_equations
-from ._initial import estimate_initial_state
-from ._objective import CostWeights
-from ._physics import PhysicsModel
-from ._problem import (
-    SolverOptions,
-    build_model,
-    fit_records,
-    initial_state_guess,
-)
-from ._rollout import free_run_record
-from ._segments import split_at_gaps
-from ._sparsity import SparseOptions
-from ._splitters import check_sample_index, warn_if_fragmented
 from ._validation import (
     as_records,
     check_input_width,
@@ -40,8 +24,19 @@ from ._validation import (
     check_physics,
     is_experiment_list,
 )
-from ._verdict import runaway_parameters
+from .dictionaries import compile_basis
 from .effects._hidden import n_declared_states
+from .fitting._problem import SolverOptions, build_model, fit_records, initial_state_guess
+from .fitting._sparsity import SparseOptions
+from .fitting._verdict import runaway_parameters
+from .model._equations import format_equations
+from .model._physics import PhysicsModel
+from .model_selection._split import check_sample_index, warn_if_fragmented
+from .runtime._backend import to_device
+from .simulation._initial import estimate_initial_state
+from .simulation._objective import CostWeights
+from .simulation._rollout import free_run_record
+from .simulation._segments import split_at_gaps
 from .solvers import LevenbergMarquardt, Optax
 from .solvers._rules import LM_SCALINGS
 

@@ -20,15 +20,12 @@ from joblib import effective_n_jobs
 from sklearn.base import clone
 from sklearn.model_selection import KFold, check_cv
 
-from ._equations import correction_rows
 from ._estimator import GreyBoxSparseRegressor
-from ._parallel import gather, launch
+from .model._equations import correction_rows
+from .model_selection._scoring import held_out_errors
+from .runtime._parallel import gather, launch
 
-__all__ = ["DIVERGED_FACTOR", "GammaPath", "fit_gamma_path", "gamma_grid"]
-
-DIVERGED_FACTOR = 10.0
-"""A held-out simulation that is not finite scores, in the output's units, this many
-standard deviations of the measured block (ten times worse than predicting its mean)."""
+__all__ = ["GammaPath", "fit_gamma_path", "gamma_grid"]
 
 
 def gamma_grid(gamma_max: float, n_gammas: int = 8, eps: float = 1e-6) -> np.ndarray:
@@ -147,22 +144,6 @@ class GammaPath:
             line = f"{gamma:10.3g} {self.n_nonzero[k]:5d} {self.train_error[k]:9.4g}{cv}{mark}"
             lines.append(line)
         return "\n".join(lines)
-
-
-def held_out_errors(est: GreyBoxSparseRegressor, u, z, init_window: int) -> np.ndarray:
-    """RMS free-run error of one block after ``init_window`` samples (its initial state
-    estimated from them): in output standard deviations (``inf`` if it diverged) and in
-    the output's units (`DIVERGED_FACTOR` standard deviations of ``z`` if it
-    diverged); the second is what [`held_out_rmse`][sk_offwhite.loop.held_out_rmse] scores."""
-    z = np.asarray(z, float).reshape(len(u), -1)
-    with np.errstate(over="ignore", invalid="ignore"):
-        z_init = z[:init_window] if init_window else None
-        simulated = np.asarray(est.predict(u, z_init=z_init)).reshape(z.shape)
-        error = (simulated - z)[init_window:]
-        values = np.sqrt([np.mean((error / est.output_scale_) ** 2), np.mean(error**2)])
-    if np.all(np.isfinite(values)):
-        return values
-    return np.array([np.inf, DIVERGED_FACTOR * float(np.std(z))])
 
 
 def _normalised_rmse(est: GreyBoxSparseRegressor, u, z, init_window: int) -> float:

@@ -6,8 +6,8 @@ import jax
 import numpy as np
 from sklearn.utils import check_array
 
-from ._backend import to_device
-from ._physics import PhysicsModel
+from .model._physics import PhysicsModel
+from .runtime._backend import to_device
 
 __all__ = ["as_records", "check_inputs", "check_pair", "check_physics", "is_experiment_list"]
 

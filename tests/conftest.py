@@ -166,17 +166,17 @@ def solver_problem(physics, records, horizon, with_library: bool, omega_start: f
     ``omega_start`` (off the L1 kink) or none: ``(problem, free0, model, layout)``."""
     import pysindy as ps
 
-    from sk_offwhite._basis import compile_basis
-    from sk_offwhite._layout import Layout
-    from sk_offwhite._objective import CostWeights
-    from sk_offwhite._problem import (
+    from sk_offwhite.dictionaries import compile_basis
+    from sk_offwhite.fitting._problem import (
         bound_blocks,
         build_model,
         free_blocks,
         initial_blocks,
         make_problem,
     )
-    from sk_offwhite._segments import make_segments
+    from sk_offwhite.simulation._layout import Layout
+    from sk_offwhite.simulation._objective import CostWeights
+    from sk_offwhite.simulation._segments import make_segments
 
     library = ps.PolynomialLibrary(degree=2) if with_library else None
     basis = None if library is None else compile_basis(library, ["x1", "x2", "u0"], 2)

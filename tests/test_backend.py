@@ -9,7 +9,7 @@ import sys
 import pytest
 
 from sk_offwhite import enable_fused_loops
-from sk_offwhite._backend import with_backend_option
+from sk_offwhite.runtime._backend import with_backend_option
 
 OPTION = "xla_cpu_small_while_loop_byte_threshold"
 
@@ -99,7 +99,7 @@ def test_enabled_after_jax_started_warns_and_reaches_child_processes():
     ids=["xla-default", "enabled-before-start", "enabled-too-late"],
 )
 def test_the_process_knows_whether_its_loops_are_fused(setup, expected):
-    code = "print(sk_offwhite._backend.fused_loops())"
+    code = "print(sk_offwhite.runtime._backend.fused_loops())"
     assert _run(code, "", "import jax, sk_offwhite\n" + setup) == expected
 
 

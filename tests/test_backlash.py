@@ -14,14 +14,15 @@ import numpy as np
 import pytest
 
 from sk_offwhite import Backlash, GreyBoxSparseRegressor, Parameter, augment, switched
-from sk_offwhite._kinds import Kinds
-from sk_offwhite._problem import initial_state_guess
 from sk_offwhite.datasets import make_backlash_servo, play
 from sk_offwhite.datasets._backlash import SERVO_THETA, SERVO_WIDTH
 from sk_offwhite.effects._hidden import hidden_bounds, hidden_start
-from sk_offwhite.loop import LoopSettings, _loop, close_the_loop, score_models, write_report
+from sk_offwhite.fitting._problem import initial_state_guess
+from sk_offwhite.loop import LoopSettings, close_the_loop, score_models, write_report
 from sk_offwhite.loop._candidates import propose_effects
 from sk_offwhite.loop._hypotheses import Hypothesis, Term
+from sk_offwhite.loop._proposals import promoted as promoted_candidates
+from sk_offwhite.model._kinds import Kinds
 
 
 def _values(physics, **updates):
@@ -254,7 +255,7 @@ def test_no_dictionary_term_is_promoted_on_a_physics_with_hidden_states():
     def promoted(physics):
         names = [*physics.state_names, *physics.input_names]
         library, dt = data.suggested_library, 1.0
-        found = _loop._promoted(physics, [hypothesis], library, names, dt, LoopSettings())
+        found = promoted_candidates(physics, [hypothesis], library, names, dt, 3)
         return [c.effect.name for c in found]
 
     assert promoted(data.physics) == ["term_omega_u"]

@@ -1,4 +1,4 @@
-"""Tests for sk_offwhite._basis: compiling pysindy libraries and ridge bases to JAX."""
+"""Tests for sk_offwhite.dictionaries: compiling pysindy libraries and ridge bases to JAX."""
 
 from __future__ import annotations
 
@@ -29,7 +29,7 @@ from sklearn.exceptions import NotFittedError
 from sklearn.preprocessing import PolynomialFeatures
 from sklearn.utils.validation import check_is_fitted
 
-from sk_offwhite._basis import CompiledBasis, RidgeBasis, compile_basis, evaluate_matrix
+from sk_offwhite.dictionaries import CompiledBasis, RidgeBasis, compile_basis, evaluate_matrix
 
 FEATURES = ["x1", "x2", "u"]
 ALL_ACTIVATIONS = ("sigmoid", "softplus", "tanh", "sin", "cos", "identity", "square", "cube")

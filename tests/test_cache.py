@@ -121,8 +121,8 @@ def test_records_of_nearby_lengths_share_one_prediction_program():
     import numpy as np
 
     from sk_offwhite import GreyBoxSparseRegressor, release_package_programs
-    from sk_offwhite._rollout import free_run
     from sk_offwhite.datasets import make_leaky_tank
+    from sk_offwhite.simulation._rollout import free_run
 
     data = make_leaky_tank(n_samples=400, random_state=0)
     est = GreyBoxSparseRegressor(data.physics, max_iter=20).fit(data.u, data.z)
@@ -158,15 +158,15 @@ def test_the_residual_count_needs_no_trace_when_the_record_outnumbers_the_variab
 
 
 def test_the_loop_releases_programs_after_each_stage_when_asked(monkeypatch):
-    from sk_offwhite.loop import LoopSettings, _loop
-    from sk_offwhite.loop._progress import StageClock
+    from sk_offwhite.loop import LoopSettings, _search
+    from sk_offwhite.loop._search import Search
 
     calls = []
-    monkeypatch.setattr(_loop, "release_package_programs", lambda: calls.append(1))
+    monkeypatch.setattr(_search, "release_package_programs", lambda: calls.append(1))
     for release, expected in ((True, 2), (False, 0)):
-        settings, clock = LoopSettings(release_programs=release), StageClock()
-        with _loop._stage(clock, "one", settings):
+        search = Search(None, None, LoopSettings(release_programs=release))
+        with search.stage("one"):
             pass
-        assert _loop._released(settings, "value") == "value"
-        assert len(calls) == expected and "one" in clock.seconds
+        assert search.released("value") == "value"
+        assert len(calls) == expected and "one" in search.clock.seconds
         calls.clear()

@@ -9,7 +9,7 @@ import pytest
 from sklearn.exceptions import ConvergenceWarning
 
 from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel, RunawayParameterWarning
-from sk_offwhite._verdict import (
+from sk_offwhite.fitting._verdict import (
     NO_MODEL_FIT,
     RUNAWAY_FACTOR,
     judged,

@@ -10,7 +10,6 @@ import numpy as np
 import pysindy as ps
 import pytest
 
-from sk_offwhite._physics import PhysicsModel
 from sk_offwhite.datasets import (
     cascaded_tanks_physics,
     load_cascaded_tanks,
@@ -21,6 +20,7 @@ from sk_offwhite.datasets import (
     make_vehicle_lateral,
     safe_sqrt,
 )
+from sk_offwhite.model._physics import PhysicsModel
 
 GENERATORS = {
     "vehicle": make_vehicle_lateral,

@@ -10,8 +10,6 @@ import pytest
 from conftest import tanks_physics
 
 from sk_offwhite import GreyBoxSparseRegressor
-from sk_offwhite._problem import build_model
-from sk_offwhite._rollout import free_run
 from sk_offwhite.datasets import cascaded_tanks_physics, make_cascaded_tanks, make_coulomb_drive
 from sk_offwhite.effects import (
     AdditiveEffect,
@@ -30,10 +28,14 @@ from sk_offwhite.effects import (
     switched,
 )
 from sk_offwhite.effects._switched import switches
+from sk_offwhite.fitting._problem import build_model
 from sk_offwhite.loop import LoopSettings
-from sk_offwhite.loop._loop import _quick_fit, _rank_alone
+from sk_offwhite.loop._fits import quick_fit
+from sk_offwhite.loop._search import Search
+from sk_offwhite.loop._selection import rank_alone
 from sk_offwhite.loop._switchboard import SeparateModels, Switchboard, single_effect_models
 from sk_offwhite.loop._variants import mechanism
+from sk_offwhite.simulation._rollout import free_run
 from sk_offwhite.solvers._device import _run_on_device
 
 
@@ -304,11 +306,12 @@ def test_single_effects_on_a_board_fit_as_alone_on_one_program_per_layout():
     candidates = [SimpleNamespace(effect=effect) for effect in effects]
     settings = LoopSettings(horizon=64, max_iter=30)
     jax.clear_caches()
-    on_board = _rank_alone(physics, candidates, data.u, data.z, settings, [])
+    search = Search(data.u, data.z, settings)
+    on_board = rank_alone(search, physics, candidates)
     # windows and whole record: two layouts; the three sets pad to one size on each
     assert _run_on_device._cache_size() == 2
     separate = SeparateModels.of(physics, effects)
     for rmse, candidate, fitted in on_board:
-        alone = _quick_fit(separate, (candidate.effect,), {}, data.u, data.z, settings)
+        alone = quick_fit(search, separate, (candidate.effect,), {})
         assert rmse == pytest.approx(alone[0], rel=1e-6)
         assert fitted.keys() == alone[1].keys()

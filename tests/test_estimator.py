@@ -15,14 +15,9 @@ from sklearn.base import clone
 from sklearn.exceptions import ConvergenceWarning
 
 from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel
-from sk_offwhite._layout import Layout
-from sk_offwhite._problem import (
-    bound_blocks,
-    free_blocks,
-    initial_blocks,
-    make_problem,
-)
-from sk_offwhite._segments import make_segments
+from sk_offwhite.fitting._problem import bound_blocks, free_blocks, initial_blocks, make_problem
+from sk_offwhite.simulation._layout import Layout
+from sk_offwhite.simulation._segments import make_segments
 from sk_offwhite.solvers._core import free_residuals
 from sk_offwhite.solvers._optax import _optax_iteration, default_optimizer
 

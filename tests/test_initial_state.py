@@ -8,7 +8,7 @@ from conftest import TANKS_TRUE, simulate_numpy, tanks_physics
 from scipy.optimize import least_squares
 
 from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel
-from sk_offwhite._initial import _solve_window, estimate_initial_state, window_residual
+from sk_offwhite.simulation._initial import _solve_window, estimate_initial_state, window_residual
 
 
 @pytest.fixture(scope="module")

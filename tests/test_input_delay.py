@@ -14,19 +14,20 @@ import pysindy as ps
 import pytest
 
 from sk_offwhite import GreyBoxSparseRegressor, InputDelay, InputLag, augment, switched
-from sk_offwhite._kinds import Kinds
-from sk_offwhite._problem import free_blocks, initial_blocks
-from sk_offwhite._segments import make_segments
 from sk_offwhite.datasets import delayed_command, make_delayed_drive, make_delayed_heater
 from sk_offwhite.datasets._lag import DRIVE_DELAY, DRIVE_DT, DRIVE_THETA, HEATER_DELAY
 from sk_offwhite.datasets._synthetic import _first_order_physics, motor_rhs
 from sk_offwhite.effects import HiddenStates
 from sk_offwhite.effects._hidden import hidden_start
+from sk_offwhite.fitting._problem import free_blocks, initial_blocks
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 from sk_offwhite.loop._candidates import propose_effects
 from sk_offwhite.loop._hypotheses import Hypothesis
-from sk_offwhite.loop._loop import _candidates
+from sk_offwhite.loop._proposals import candidates as _candidates
+from sk_offwhite.loop._search import Search
 from sk_offwhite.loop._variants import mechanism, richer, richer_start
+from sk_offwhite.model._kinds import Kinds
+from sk_offwhite.simulation._segments import make_segments
 
 
 @pytest.fixture(scope="module")
@@ -298,7 +299,7 @@ def test_the_loop_proposes_no_effect_on_the_past_commands_of_a_delay():
     delay = InputDelay(0, 2.0, sampling_time=2.0, max_delay=50.0, name="delay_P")
     physics = augment(data.physics, delay)
     run = SimpleNamespace(states=np.c_[data.x, np.repeat(data.u, 25, axis=1)], outputs=data.z)
-    found = _candidates(physics, None, [], [], run, data.u, data.z, LoopSettings())
+    found = _candidates(Search(data.u, data.z, LoopSettings()), physics, None, [], [], run)
     targets = [getattr(c.effect, "state", 0) for c in found]
     assert found and max(targets) == 0  # 25 one-signed generic past commands: no levels
     assert not any(isinstance(c.effect, InputDelay | InputLag) for c in found)

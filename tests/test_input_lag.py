@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from sk_offwhite import GreyBoxSparseRegressor, InputLag, SensorLag, augment, switched
-from sk_offwhite._kinds import Kinds
 from sk_offwhite.datasets import lagged_command, make_lagged_drive, make_lagged_heater
 from sk_offwhite.datasets._lag import DRIVE_DT, DRIVE_LAG, DRIVE_THETA
 from sk_offwhite.datasets._synthetic import _first_order_physics, motor_rhs
@@ -18,6 +17,7 @@ from sk_offwhite.diagnose import correlated_inputs
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 from sk_offwhite.loop._candidates import propose_effects
 from sk_offwhite.loop._hypotheses import Hypothesis
+from sk_offwhite.model._kinds import Kinds
 
 
 @pytest.fixture(scope="module")

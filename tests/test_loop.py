@@ -24,7 +24,6 @@ from sk_offwhite import (
     RunawayParameterWarning,
     augment,
 )
-from sk_offwhite._kinds import Kinds
 from sk_offwhite.datasets import make_leaky_tank
 from sk_offwhite.diagnose import range_violations
 from sk_offwhite.loop import (
@@ -32,7 +31,9 @@ from sk_offwhite.loop import (
     Hypothesis,
     LoopSettings,
     Term,
-    _loop,
+    _corrections,
+    _fits,
+    _selection,
     close_the_loop,
     held_out_rmse,
     held_out_splits,
@@ -42,12 +43,19 @@ from sk_offwhite.loop import (
     write_report,
 )
 from sk_offwhite.loop._candidates import DEAD_ZONE_START
+from sk_offwhite.loop._fits import quick_fit as _quick_fit
 from sk_offwhite.loop._hypotheses import _sign, feature_variables
-from sk_offwhite.loop._loop import _best_starts, _capped, _quick_fit, _set_cv, _swap
 from sk_offwhite.loop._progress import StageClock
+from sk_offwhite.loop._proposals import capped as _capped
+from sk_offwhite.loop._proposals import not_modelled
+from sk_offwhite.loop._refinement import additions_and_exchanges, swap
 from sk_offwhite.loop._report import _json_rows, _table
+from sk_offwhite.loop._search import Search
+from sk_offwhite.loop._selection import best_starts
+from sk_offwhite.loop._sets import set_cv
 from sk_offwhite.loop._switchboard import effect_sets
-from sk_offwhite.loop._variants import mechanism
+from sk_offwhite.loop._variants import mechanism, representatives
+from sk_offwhite.model._kinds import Kinds
 
 
 @pytest.fixture(scope="module")
@@ -262,28 +270,23 @@ def test_candidates_are_unique_by_name():
 
 
 def test_max_candidates_caps_the_candidates_fitted(monkeypatch):
-    from sk_offwhite.loop import _loop
-
     fitted = []
 
-    def rank_alone(physics, candidates, u, z, settings, failures):
+    def rank_alone(search, physics, candidates):
         fitted.extend(candidates)
         return []
 
-    monkeypatch.setattr(_loop, "_rank_alone", rank_alone)
-    monkeypatch.setattr(_loop, "_cv_rmse", lambda *args: 1.0)
+    monkeypatch.setattr(_selection, "rank_alone", rank_alone)
+    monkeypatch.setattr(_selection, "structure_cv", lambda *args: 1.0)
     physics = make_leaky_tank(n_samples=50, random_state=0).physics
     candidates = [SimpleNamespace(effect=Leak(0, name=name)) for name in ("a", "b", "c")]
-    effects, trail, _, warm, _ = _loop._select_effects(
-        physics, candidates, None, None, LoopSettings(max_candidates=2), 1.0
-    )
+    search = Search(None, None, LoopSettings(max_candidates=2))
+    effects, trail, _, warm, _ = _selection.select_effects(search, physics, candidates, 1.0)
     assert fitted == candidates[:2] and effects == () and warm == {}
     assert trail == [("declared physics", 1.0)]
 
 
 def test_a_set_never_holds_two_variants_of_one_mechanism(monkeypatch):
-    from sk_offwhite.loop import _loop
-
     into_x1 = Overflow(1, 9.0, sink=0, name="overflow_x2_to_x1")
     out = Overflow(1, 9.0, name="overflow_x2")
     upper = Overflow(0, 5.0, sink=1, name="overflow_x1_to_x2")
@@ -293,54 +296,51 @@ def test_a_set_never_holds_two_variants_of_one_mechanism(monkeypatch):
     # by more than the tolerance (2 %)
     ranked = [(0.5, SimpleNamespace(effect=into_x1), {}), (0.505, SimpleNamespace(effect=out), {})]
     ranked += [(0.6, SimpleNamespace(effect=upper), {}), (0.7, SimpleNamespace(effect=leak), {})]
-    assert [c.effect for _, c, _ in _loop._representatives(ranked, 0.02)] == [out, upper, leak]
+    assert [c.effect for _, c, _ in representatives(ranked, 0.02)] == [out, upper, leak]
     clearly = [(0.4, *ranked[0][1:]), *ranked[1:]]
-    assert _loop._representatives(clearly, 0.02)[0][1].effect == into_x1
+    assert representatives(clearly, 0.02)[0][1].effect == into_x1
 
     # every added effect lowers the error, a second variant most: without the rule
     # forward selection would take it
-    def quick_fit(board, effects, warm, u, z, settings):
+    def quick_fit(search, board, effects, warm):
         names = frozenset(e.name for e in effects)
         return 0.1 if {"overflow_x2_to_x1", "overflow_x2"} <= names else 1 / (1 + len(names)), {}
 
-    monkeypatch.setattr(_loop, "_quick_fit", quick_fit)
+    monkeypatch.setattr(_selection, "quick_fit", quick_fit)
     settings = LoopSettings(max_effects=3, beam=3)
-    steps = _loop._forward(None, ranked, None, None, settings, 1.0, [])
+    steps = _selection.forward(Search(None, None, settings), None, ranked, 1.0)
     assert [[e.name for e in step[0]] for step in steps] == [
         ["overflow_x2"],
         ["overflow_x2", "overflow_x1_to_x2"],
         ["overflow_x2", "overflow_x1_to_x2", "leak_x1"],
     ]
-    exchanges = _loop._additions_and_exchanges((out, upper), {}, ranked, 1.0, 1.0, settings)
+    exchanges = additions_and_exchanges((out, upper), {}, ranked, 1.0, 1.0, settings)
     moves = [m[0] for m in exchanges]
     assert all(len({mechanism(e) for e in m}) == len(m) for m in moves)
     assert (out, upper, leak) in moves and (upper, leak) in moves
 
 
 def test_settings_are_checked_and_passed_to_every_fit():
-    with pytest.raises(ValueError, match="max_candidates must be None or >= 1"):
+    with pytest.raises(ValueError, match="'max_candidates' parameter of LoopSettings"):
         LoopSettings(max_candidates=0)
-    with pytest.raises(ValueError, match="lm_scaling must be 'per-variable' or 'global'"):
+    with pytest.raises(ValueError, match="'lm_scaling' parameter of LoopSettings"):
         LoopSettings(lm_scaling="minpack")
-    from sk_offwhite.loop import _loop
-
-    settings = LoopSettings(lm_scaling="per-variable")
-    assert _loop._estimator(None, settings).lm_scaling == "per-variable"
+    settings = LoopSettings(lm_scaling="global")
+    assert Search(None, None, settings).estimator(None).lm_scaling == "global"
 
 
 @pytest.mark.parametrize("one_standard_error", [False, True])
 def test_the_delta_path_uses_the_settings_rule_for_gamma(monkeypatch, one_standard_error):
-    from sk_offwhite.loop import _loop
-
     seen = {}
 
     def path(est, u, z, gammas=None, **kwargs):
         seen.update(kwargs)
         return SimpleNamespace(estimator=est)
 
-    monkeypatch.setattr(_loop, "fit_gamma_path", path)
+    monkeypatch.setattr(_corrections, "fit_gamma_path", path)
     settings = LoopSettings(one_standard_error=one_standard_error)
-    _loop._fit_delta(None, None, np.zeros((300, 1)), np.zeros((300, 1)), settings)
+    search = Search(np.zeros((300, 1)), np.zeros((300, 1)), settings)
+    _corrections.fit_delta(search, None, None)
     assert seen["one_standard_error"] is one_standard_error
     assert seen["n_gammas"] == settings.n_gammas and len(seen["cv"]) == settings.n_folds
 
@@ -408,15 +408,13 @@ def test_stepwise_drops_an_effect_that_adds_nothing():
     settings = LoopSettings(n_folds=2, max_iter=100, fit_delta=False)
     effects = (Leak(0, name="leak_x"), OutputOffset(0, name="offset_x"))
     board = effect_sets(data.physics, effects, shared=False)
-    failures, fits = [], {}
-    cv, _ = _set_cv(board, effects, {}, data.u, data.z, settings, failures)
-    kept, params, rows = _swap(
-        board, [], (effects, {}, cv), data.u, data.z, settings, failures, fits
-    )
-    assert [e.name for e in kept] == ["leak_x"] and failures == []
+    search, fits = Search(data.u, data.z, settings), {}
+    cv, _ = set_cv(search, board, effects, {})
+    kept, params, rows = swap(search, board, [], (effects, {}, cv), fits)
+    assert [e.name for e in kept] == ["leak_x"] and search.failures == []
     assert [label for label, _ in rows] == ["leak_x"]
     assert dict(rows)["leak_x"] <= (1 + settings.tolerance) * cv
-    offset_alone = _quick_fit(board, effects[1:], {}, data.u, data.z, settings)
+    offset_alone = _quick_fit(search, board, effects[1:], {})
     assert offset_alone[0] > (1 + settings.tolerance) * cv
     assert "offset_x_offset" not in params
 
@@ -444,7 +442,7 @@ def test_no_candidate_repeats_a_mechanism_the_physics_models():
         InputSaturation(0, 3.0, name="actuator_u"),
         Leak(0, name="leak_x"),
     ]
-    kept = _loop._not_modelled(physics, [Candidate(e, "proposed") for e in proposed])
+    kept = not_modelled(physics, [Candidate(e, "proposed") for e in proposed])
     assert [c.effect.name for c in kept] == ["leak_x"]
 
 
@@ -456,17 +454,17 @@ def test_a_ranking_fit_keeps_a_runaway_level_to_itself(monkeypatch):
     settings = LoopSettings(n_jobs=1, max_iter=50)
     effect = Leak(0, name="leak_x")
     board = effect_sets(data.physics, (effect,), shared=False)
-    fit_set = _loop._fit_set
+    fit_set = _fits.fit_set
 
     def fit_set_whose_level_runs_away(*args):
         message = "Parameter 'leak_x_rate' ran from 1 to 1e9"
         warnings.warn(message, RunawayParameterWarning, stacklevel=2)
         return fit_set(*args)
 
-    monkeypatch.setattr(_loop, "_fit_set", fit_set_whose_level_runs_away)
+    monkeypatch.setattr(_fits, "fit_set", fit_set_whose_level_runs_away)
     with warnings.catch_warnings():
         warnings.simplefilter("error", RunawayParameterWarning)
-        rmse, fitted = _quick_fit(board, (effect,), {}, data.u, data.z, settings)
+        rmse, fitted = _quick_fit(Search(data.u, data.z, settings), board, (effect,), {})
     assert np.isfinite(rmse) and "leak_x_rate" in fitted
 
 
@@ -510,19 +508,19 @@ def test_a_set_reached_from_two_starts_keeps_the_better_fit(monkeypatch):
     fits = {0.1: (0.5, {"leak_x_rate": 0.1}), 0.3: (0.2, {"leak_x_rate": 0.05})}
     asked = []
 
-    def best_of(board, sets, u, z, settings, failures):
+    def best_of(search, board, sets):
         asked.extend(sets)
         return [min((fits[s["leak_x_rate"]] for s in starts), key=lambda f: f[0])
                 for _, starts in sets]  # fmt: skip
 
-    monkeypatch.setattr(_loop, "_best_of", best_of)
+    monkeypatch.setattr(_selection, "best_of", best_of)
     steps = [
         ((leak,), {"leak_x_rate": 0.1}, 0.5),
         ((bias, leak), {"leak_x_rate": 0.2, "bias_x_value": 1.0}, 0.4),
         ((leak,), {"leak_x_rate": 0.3}, None),
         ((leak, bias), {"leak_x_rate": 0.2, "bias_x_value": 1.0}, None),
     ]
-    merged = _best_starts(None, steps, None, None, None, [])
+    merged = best_starts(Search(None, None, LoopSettings()), None, steps)
     assert [len(starts) for _, starts in asked] == [2]  # only the set with two starts
     assert merged[0] == ((leak,), {"leak_x_rate": 0.05}, 0.2)  # the better start's fit
     assert merged[1:] == steps[1:]

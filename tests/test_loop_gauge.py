@@ -15,6 +15,8 @@ from sk_offwhite.loop import (
     hold_undetermined_directions,
     warm_physics,
 )
+from sk_offwhite.loop._final import holding_as as _holding_as
+from sk_offwhite.loop._fits import record_rmse as _rmse
 from sk_offwhite.loop._gauge import (
     fit_undetermined_directions,
     held_note,
@@ -22,7 +24,7 @@ from sk_offwhite.loop._gauge import (
     holding,
     undetermined_directions,
 )
-from sk_offwhite.loop._loop import _estimator, _holding_as, _rmse
+from sk_offwhite.loop._search import Search
 
 CALIBRATION = SensorCalibration(0, center=4.0, scale=2.0, name="sensor_x")
 
@@ -41,7 +43,8 @@ def _tank(free_gain: bool):
 def _fitted(physics, data, settings):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return fit_continued(_estimator(physics, settings), data.u, data.z, None)
+        est = Search(data.u, data.z, settings).estimator(physics)
+        return fit_continued(est, data.u, data.z, None)
 
 
 def test_an_effects_parameter_is_held_before_a_declared_one():
@@ -166,7 +169,7 @@ def test_a_calibrated_level_of_free_scale_gets_a_parameter_held_and_the_same_fit
 def test_a_hold_not_kept_returns_the_unheld_models_cv(monkeypatch):
     """Where the held refit fails, the model stays unheld and is scored by its own CV,
     not by the held CV the loop passed in (the trail's)."""
-    from sk_offwhite.loop import _loop
+    from sk_offwhite.loop import _final
 
     data, physics = _tank(free_gain=True)
     settings = LoopSettings(n_folds=2, max_iter=100)
@@ -175,7 +178,7 @@ def test_a_hold_not_kept_returns_the_unheld_models_cv(monkeypatch):
     def failing(*args):
         raise ValueError("the held refit failed")
 
-    monkeypatch.setattr(_loop, "_fit_set", failing)
+    monkeypatch.setattr(_final, "fit_set", failing)
     failures = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -29,14 +29,13 @@ from sk_offwhite.datasets import (
 )
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 from sk_offwhite.loop._candidates import Candidate
-from sk_offwhite.loop._loop import (
-    _additions_and_exchanges,
-    _refinements,
-    _set_cv,
-    _size,
-    _swap,
-    _with_richer,
-)
+from sk_offwhite.loop._fits import size as _size
+from sk_offwhite.loop._refinement import additions_and_exchanges as _additions_and_exchanges
+from sk_offwhite.loop._refinement import refinements as _refinements
+from sk_offwhite.loop._refinement import swap
+from sk_offwhite.loop._search import Search
+from sk_offwhite.loop._selection import with_richer as _with_richer
+from sk_offwhite.loop._sets import set_cv
 from sk_offwhite.loop._switchboard import effect_sets
 from sk_offwhite.loop._variants import mechanism, richer, richer_start
 
@@ -258,10 +257,10 @@ def _refined_spring(data, millimetres: bool):
     settings = LoopSettings(n_folds=2, max_iter=100, fit_delta=False)
     spring = Stiffness(1, 0, reference=float(np.sqrt(np.mean(z**2))), name="stiffness_y")
     board = effect_sets(physics, _with_richer([spring]), shared=False)
-    failures, fits = [], {}
-    cv, _ = _set_cv(board, (spring,), {}, data.u, z, settings, failures)
-    kept, _, rows = _swap(board, [], ((spring,), {}, cv), data.u, z, settings, failures, fits)
-    assert failures == []
+    search, fits = Search(data.u, z, settings), {}
+    cv, _ = set_cv(search, board, (spring,), {})
+    kept, _, rows = swap(search, board, [], ((spring,), {}, cv), fits)
+    assert search.failures == []
     return kept, cv, dict(rows), fits["stiffness_y_power"].parameters_
 
 

@@ -22,7 +22,9 @@ from sk_offwhite.certify import identifiability
 from sk_offwhite.datasets import make_nonlinear_sensor_tank
 from sk_offwhite.datasets._synthetic import tank_rhs
 from sk_offwhite.loop import LoopSettings, cross_validated_rmse, warm_physics
-from sk_offwhite.loop._loop import _choose, _scored_output_delta
+from sk_offwhite.loop._corrections import scored_output_delta
+from sk_offwhite.loop._result import choose as _choose
+from sk_offwhite.loop._search import Search
 
 
 @pytest.fixture(scope="module")
@@ -234,12 +236,12 @@ def test_the_loop_corrects_the_output_map_where_the_sensor_is_wrong(sensor_data)
     settings = LoopSettings(n_folds=2, max_iter=100, gammas=(1e-3,))
     declared = GreyBoxSparseRegressor(sensor_data.physics, max_iter=100).fit(u, z)
     start = warm_physics(sensor_data.physics, declared)
-    failures, notes = [], []
+    search, notes = Search(u, z, settings), []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        est, path, cv = _scored_output_delta(start, declared, (0,), u, z, settings, failures, notes)
+        est, path, cv = scored_output_delta(search, start, declared, (0,), notes)
         declared_cv = cross_validated_rmse(start, u, z, settings)
-    assert failures == [] and notes == [] and path is None
+    assert search.failures == [] and notes == [] and path is None
     assert est.delta_outputs_ == (0,) and est.delta_states_ == ()
     states = declared.simulate(u).states[:, 0]
     assert est.library.limits == {"x": (states.min(), states.max())}
@@ -247,12 +249,9 @@ def test_the_loop_corrects_the_output_map_where_the_sensor_is_wrong(sensor_data)
 
 
 def test_no_output_correction_where_the_outputs_do_not_read_states(sensor_data):
-    failures, notes = [], []
-    outcome = _scored_output_delta(
-        sensor_data.physics, None, None, sensor_data.u, sensor_data.z, LoopSettings(), failures,
-        notes,
-    )  # fmt: skip
-    assert outcome == (None, None, np.inf) and failures == []
+    search, notes = Search(sensor_data.u, sensor_data.z, LoopSettings()), []
+    outcome = scored_output_delta(search, sensor_data.physics, None, None, notes)
+    assert outcome == (None, None, np.inf) and search.failures == []
     assert notes == ["augmented physics + output δ not fitted: the outputs do not read states "
                      "directly."]  # fmt: skip
 

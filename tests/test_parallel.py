@@ -9,10 +9,11 @@ import pysindy as ps
 import pytest
 
 from sk_offwhite import GreyBoxSparseRegressor, fit_gamma_path
-from sk_offwhite._parallel import gather, launch, start_workers
 from sk_offwhite.datasets import make_leaky_tank
 from sk_offwhite.loop import LoopSettings, close_the_loop
-from sk_offwhite.loop._loop import _attempt_all, _attempt_split, _fold_rmse
+from sk_offwhite.loop._cv import _fold_rmse
+from sk_offwhite.loop._search import Search
+from sk_offwhite.runtime._parallel import gather, launch, start_workers
 
 
 @pytest.mark.parametrize("n_jobs", [None, 2])
@@ -42,29 +43,29 @@ def test_started_workers_import_the_module_and_answer_in_order():
 
 
 def test_a_failing_call_in_a_worker_is_a_line_of_the_failures_and_the_others_go_on():
-    failures = []
+    search = Search(None, None, LoopSettings(n_jobs=2))
     calls = [("root of 4", math.sqrt, 4.0), ("root of -1", math.sqrt, -1.0)]
-    values = _attempt_all(failures, calls, LoopSettings(n_jobs=2))
+    values = search.attempt_all(calls)
     assert values == [2.0, None]
-    assert failures == ["root of -1: math domain error"]
+    assert search.failures == ["root of -1: math domain error"]
 
 
 def test_calls_split_between_this_process_and_workers_come_back_in_order(caplog):
-    failures = []
+    search = Search(None, None, LoopSettings(n_jobs=2))
     roots = [4.0, 9.0, -1.0, 16.0, 25.0]
     calls = [(f"root of {x:g}", math.sqrt, x) for x in roots]
     here = [True, False, False, True, False]
     with caplog.at_level("INFO", logger="sk_offwhite.loop"):
-        values = _attempt_split(failures, calls, here, LoopSettings(n_jobs=2))
+        values = search.attempt_split(calls, here)
     assert values == [2.0, 3.0, None, 4.0, 5.0]
-    assert failures == ["root of -1: math domain error"]
+    assert search.failures == ["root of -1: math domain error"]
     counted = [message.rsplit("(", 1)[1] for message in caplog.messages]
     assert counted == [f"{k} of 5)" for k in range(1, 6)]
 
 
 @pytest.mark.parametrize("in_worker", [False, True])
 def test_a_worker_drops_the_package_programs_after_a_task_when_asked(monkeypatch, in_worker):
-    from sk_offwhite import _parallel
+    from sk_offwhite.runtime import _parallel
 
     released = []
     monkeypatch.setattr(_parallel, "release_package_programs", lambda: released.append(1))

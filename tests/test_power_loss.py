@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from sk_offwhite import PowerLoss, augment
-from sk_offwhite._kinds import Kinds
 from sk_offwhite.datasets import make_convective_block
 from sk_offwhite.loop import LoopSettings, fit_continued, warm_physics
 from sk_offwhite.loop._candidates import propose_effects
 from sk_offwhite.loop._hypotheses import Hypothesis
-from sk_offwhite.loop._loop import _estimator
+from sk_offwhite.loop._search import Search
+from sk_offwhite.model._kinds import Kinds
 
 
 def _term(loss, x, theta):
@@ -86,9 +86,10 @@ def test_a_loss_of_fitted_power_takes_the_convective_block_to_the_sensors_noise(
     temperature = data.x[:, 0]  # the record's range, as the loop's simulated one
     loss = PowerLoss(0, level=temperature.min(), reference=np.std(temperature), name="loss_T")
     settings = LoopSettings(max_iter=100)
-    declared = fit_continued(_estimator(data.physics, settings), data.u, data.z, 128)
+    search = Search(data.u, data.z, settings)
+    declared = fit_continued(search.estimator(data.physics), data.u, data.z, 128)
     physics = augment(warm_physics(data.physics, declared), loss)
-    augmented = fit_continued(_estimator(physics, settings), data.u, data.z, 128)
+    augmented = fit_continued(search.estimator(physics), data.u, data.z, 128)
 
     def validation(est):
         return float(np.sqrt(np.mean((est.predict(data.u_val) - data.z_val) ** 2)))

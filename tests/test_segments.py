@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from sk_offwhite._segments import make_segments, padded_length, split_at_gaps
+from sk_offwhite.simulation._segments import make_segments, padded_length, split_at_gaps
 
 
 def _record(n, offset=0.0):

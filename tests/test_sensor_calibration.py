@@ -39,20 +39,20 @@ def _fit_protocols(monkeypatch, fit):
     was started over (through ``fit_continued``, which ends on the whole record), when
     fitted by ``fit(board, effects, u, z, settings)``."""
     from sk_offwhite import Leak
-    from sk_offwhite.loop import _loop
+    from sk_offwhite.loop import _fits
     from sk_offwhite.loop._switchboard import effect_sets
 
     data = make_nonlinear_sensor_tank(n_samples=200, random_state=0)
     sensor, leak = SensorCalibration(0, 4.0, 2.0, name="sensor_x"), Leak(0)
     board = effect_sets(data.physics, [sensor, leak], False)
     horizons = []
-    fit_continued = _loop.fit_continued
+    fit_continued = _fits.fit_continued
 
     def spied(est, u, z, horizon):
         horizons.append(horizon)
         return fit_continued(est, u, z, horizon)
 
-    monkeypatch.setattr(_loop, "fit_continued", spied)
+    monkeypatch.setattr(_fits, "fit_continued", spied)
     settings = LoopSettings(horizon=50, max_iter=5, n_jobs=1, n_folds=2)
     for effects in [(leak,), (sensor,), (leak, sensor)]:
         assert np.isfinite(fit(board, effects, data.u, data.z, settings))
@@ -65,10 +65,11 @@ def test_every_quick_fit_ends_on_the_whole_record_a_calibrated_set_starts_there(
     nothing (the Cascaded Tanks with ``max_iter=1000``): a set with an effect on the output
     map is fitted on the whole record; the other sets start over their shooting windows and
     end on the whole record too, the protocol all sets are ranked by."""
-    from sk_offwhite.loop import _loop
+    from sk_offwhite.loop._fits import quick_fit
+    from sk_offwhite.loop._search import Search
 
     def quick(board, effects, u, z, settings):
-        return _loop._quick_fit(board, effects, {}, u, z, settings)[0]
+        return quick_fit(Search(u, z, settings), board, effects, {})[0]
 
     assert _fit_protocols(monkeypatch, quick) == [50, None, None]
 
@@ -80,12 +81,13 @@ def test_a_set_and_the_final_physics_with_a_calibration_are_fitted_on_the_whole_
     """The rule of the quick fits holds where a set is refitted before its CV and where the
     chosen set is fitted as the final physics (both through ``_fit_set``), and where a
     calibrated set is refitted with a parameter held on an undetermined direction."""
-    from sk_offwhite.loop import _loop
+    from sk_offwhite.loop._search import Search
+    from sk_offwhite.loop._sets import set_cv
 
     def cross_validated(board, effects, u, z, settings):
-        failures = []
-        score, fitted = _loop._set_cv(board, effects, {}, u, z, settings, failures)
-        assert fitted is not None, failures
+        search = Search(u, z, settings)
+        score, fitted = set_cv(search, board, effects, {})
+        assert fitted is not None, search.failures
         return score
 
     horizons = _fit_protocols(monkeypatch, cross_validated)

@@ -23,16 +23,16 @@ from sk_offwhite import (
     augment,
     switched,
 )
-from sk_offwhite._physics import Parameter, PhysicsModel
-from sk_offwhite._problem import initial_state_guess
 from sk_offwhite.datasets import lagged_reading, make_slow_sensor_tank
 from sk_offwhite.datasets._sensor import SENSOR_LAG, SENSOR_THETA, _sensor_tank_physics
 from sk_offwhite.datasets._synthetic import POSITIVE, tank_rhs
 from sk_offwhite.diagnose import lagging_outputs
 from sk_offwhite.effects._lags import sensor_lag_law
+from sk_offwhite.fitting._problem import initial_state_guess
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 from sk_offwhite.loop._candidates import propose_effects
 from sk_offwhite.loop._variants import mechanism, richer
+from sk_offwhite.model._physics import Parameter, PhysicsModel
 
 
 @pytest.fixture(scope="module")

@@ -24,7 +24,7 @@ from sk_offwhite._path import (
     _folds_together,
     penalised_objective,
 )
-from sk_offwhite._sparsity import _no_worse_than, _Stage
+from sk_offwhite.fitting._sparsity import _no_worse_than, _Stage
 from sk_offwhite.loop import held_out_rmse
 from sk_offwhite.solvers._core import SolverResult
 

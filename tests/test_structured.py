@@ -11,9 +11,9 @@ from conftest import solver_problem, tanks_physics
 from sklearn.exceptions import ConvergenceWarning
 
 from sk_offwhite import GreyBoxSparseRegressor
-from sk_offwhite._objective import residual_parts
-from sk_offwhite._sparsity import block_columns
 from sk_offwhite.datasets import make_cascaded_tanks
+from sk_offwhite.fitting._sparsity import block_columns
+from sk_offwhite.simulation._objective import residual_parts
 from sk_offwhite.solvers import _core as core
 from sk_offwhite.solvers._coloured import (
     _compressed,

@@ -21,8 +21,8 @@ from sklearn.utils import metadata_routing
 from sklearn.utils._param_validation import Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted
 
-from .._segments import split_at_gaps
 from .._validation import check_input_width, check_inputs, check_pair
+from ..simulation._segments import split_at_gaps
 from ._embedding import Embedding, embed_record, history_length, variable_names
 from ._simulate import FreeRun, output_box, simulate_free_run
 

@@ -24,9 +24,9 @@ from typing import NamedTuple
 import jax
 import jax.numpy as jnp
 
-from .._layout import Layout
-from .._objective import residuals, rollout_segments
-from .._rollout import Model, model_output, model_step, theta_dict
+from ..simulation._layout import Layout
+from ..simulation._objective import residuals, rollout_segments
+from ..simulation._rollout import Model, model_output, model_step, theta_dict
 from ..solvers._core import Problem, linearised
 
 __all__ = ["Perturbation", "cost_hessian", "mixed_derivatives", "output_jacobian"]

@@ -2,7 +2,7 @@ r"""A fitted estimator's cost $C_T$ as a function of the variables being certifi
 
 The certificates of this package (Hessian, covariance, Theorem 1 sensitivities) differentiate
 the same multi-step cost the estimator minimised (eq. 3 of Donati et al.,
-`sk_offwhite._objective`) at its solution, with respect to the *certified variables*
+`sk_offwhite.simulation._objective`) at its solution, with respect to the *certified variables*
 
 $$
 p = (\theta_{\text{free}},\ \hat x_0^{\text{free}},\ \Omega_{\text{supp}}),
@@ -22,13 +22,13 @@ from typing import NamedTuple
 import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
-from .._equations import correction_rows
 from .._estimator import GreyBoxSparseRegressor, records_digest
-from .._layout import Layout
-from .._objective import CostWeights
-from .._problem import make_problem
-from .._rollout import Model
-from .._segments import make_segments
+from ..fitting._problem import make_problem
+from ..model._equations import correction_rows
+from ..simulation._layout import Layout
+from ..simulation._objective import CostWeights
+from ..simulation._rollout import Model
+from ..simulation._segments import make_segments
 from ..solvers._core import Problem
 
 __all__ = ["LocalProblem", "check_fitted", "local_problem"]

@@ -34,9 +34,9 @@ import jax.numpy as jnp
 import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
-from .._equations import correction_rows
-from .._rollout import simulate
 from .._validation import check_pair
+from ..model._equations import correction_rows
+from ..simulation._rollout import simulate
 from ._certificates import SparsityCertificate, certify_problem
 from ._estimate import refined_mu, select_estimate
 from ._feasible import FeasibleSetBounds, feasible_set_bounds

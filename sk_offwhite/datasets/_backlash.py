@@ -6,7 +6,6 @@ import jax.numpy as jnp
 import numpy as np
 from sklearn.utils import Bunch, check_random_state
 
-from sk_offwhite._physics import PhysicsModel
 from sk_offwhite.datasets._common import (
     _bunch,
     _check_n_samples,
@@ -18,6 +17,7 @@ from sk_offwhite.datasets._common import (
     _rollout,
 )
 from sk_offwhite.datasets._mechanical import _second_order_physics
+from sk_offwhite.model._physics import PhysicsModel
 
 __all__ = ["make_backlash_servo", "play"]
 

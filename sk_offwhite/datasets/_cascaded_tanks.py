@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 from sklearn.utils import Bunch
 
-from sk_offwhite._physics import Parameter, PhysicsModel
+from sk_offwhite.model._physics import Parameter, PhysicsModel
 
 __all__ = ["cascaded_tanks_physics", "load_cascaded_tanks", "safe_sqrt"]
 

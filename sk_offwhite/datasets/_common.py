@@ -15,7 +15,7 @@ import jax.numpy as jnp
 import numpy as np
 from sklearn.utils import Bunch
 
-from sk_offwhite._physics import PhysicsModel
+from sk_offwhite.model._physics import PhysicsModel
 
 # --------------------------------------------------------------------------------------
 # Array helpers usable from numpy (pysindy) and jax.numpy (the package's feature maps)

@@ -10,10 +10,10 @@ from __future__ import annotations
 import numpy as np
 from sklearn.utils import Bunch
 
-from sk_offwhite._physics import PhysicsModel
 from sk_offwhite.datasets._common import _SimpleSystem
 from sk_offwhite.datasets._mechanical import _generate, _Generator
 from sk_offwhite.datasets._synthetic import _first_order_physics
+from sk_offwhite.model._physics import PhysicsModel
 
 __all__ = ["make_diode_rc"]
 

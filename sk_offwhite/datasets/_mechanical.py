@@ -24,7 +24,6 @@ import jax.numpy as jnp
 import numpy as np
 from sklearn.utils import Bunch, check_random_state
 
-from sk_offwhite._physics import Parameter, PhysicsModel
 from sk_offwhite.datasets._common import (
     _check_n_samples,
     _multisine,
@@ -42,6 +41,7 @@ from sk_offwhite.datasets._synthetic import (
     motor_rhs,
     oscillator_rhs,
 )
+from sk_offwhite.model._physics import Parameter, PhysicsModel
 
 __all__ = [
     "make_coulomb_drive",

@@ -34,7 +34,6 @@ import jax.numpy as jnp
 import numpy as np
 from sklearn.utils import Bunch, check_random_state
 
-from sk_offwhite._physics import Parameter, PhysicsModel
 from sk_offwhite.datasets._cascaded_tanks import (
     SATURATION_LEVEL,
     SQRT_EPS,
@@ -61,6 +60,7 @@ from sk_offwhite.datasets._common import (
     _xp,
 )
 from sk_offwhite.datasets._vehicle import make_vehicle_lateral, vehicle_dictionary_library
+from sk_offwhite.model._physics import Parameter, PhysicsModel
 
 __all__ = [
     "make_cascaded_tanks",

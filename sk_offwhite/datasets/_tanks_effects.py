@@ -17,8 +17,8 @@ from collections.abc import Mapping, Sequence
 import jax
 import jax.numpy as jnp
 
-from sk_offwhite._physics import Parameter, PhysicsModel
 from sk_offwhite.datasets._cascaded_tanks import SAMPLING_TIME, SATURATION_LEVEL, safe_sqrt
+from sk_offwhite.model._physics import Parameter, PhysicsModel
 
 __all__ = [
     "EFFECTS",

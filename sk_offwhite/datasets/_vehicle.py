@@ -13,7 +13,6 @@ from sklearn.utils import Bunch, check_random_state
 if TYPE_CHECKING:
     import pysindy as ps
 
-from sk_offwhite._physics import Parameter, PhysicsModel
 from sk_offwhite.datasets._common import (
     _bunch,
     _check_n_samples,
@@ -29,6 +28,7 @@ from sk_offwhite.datasets._common import (
     _uniform,
     printable,
 )
+from sk_offwhite.model._physics import Parameter, PhysicsModel
 
 __all__ = ["make_vehicle_lateral", "vehicle_dictionary_library"]
 

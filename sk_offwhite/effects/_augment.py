@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from .._physics import DiscretizedStep, Parameter, PhysicsModel
+from ..model._physics import DiscretizedStep, Parameter, PhysicsModel
 from ._base import AdditiveEffect, Effect, LawEffect
 from ._hidden import SensorReading, sensor_readings, with_hidden_states
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 import jax
 import numpy as np
 
-from .._physics import Parameter
+from ..model._physics import Parameter
 
 
 def hinge(a, sharpness: float):

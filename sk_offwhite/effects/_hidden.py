@@ -45,7 +45,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._physics import measured_states
+from ..model._physics import measured_states
 
 __all__ = [
     "DeclaredStates",

@@ -20,7 +20,7 @@ import math
 import jax.numpy as jnp
 import numpy as np
 
-from .._physics import Parameter
+from ..model._physics import Parameter
 from ._base import Effect, _positive, _widened_range, checked_positive
 from ._hidden import FollowsOutput, HiddenStates
 

@@ -6,7 +6,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._physics import Parameter, PhysicsModel
+from ..model._physics import Parameter, PhysicsModel
 from ._base import AdditiveEffect, LawEffect
 
 __all__ = ["DictionaryTerm", "RelaxedLaw", "relaxations"]
@@ -70,7 +70,7 @@ class DictionaryTerm(AdditiveEffect):
         return self._compiled().names[self.column]
 
     def _compiled(self):
-        from .._basis import compile_basis
+        from ..dictionaries import compile_basis
 
         with jax.ensure_compile_time_eval():  # compiled eagerly, also when called in a trace
             return compile_basis(self.library, self.input_features, 1)
@@ -84,7 +84,7 @@ class DictionaryTerm(AdditiveEffect):
         return theta[f"{self.name}_coefficient"] * phi[0, self.column]
 
     def basis(self, x, u):
-        from .._basis import evaluate_matrix
+        from ..dictionaries import evaluate_matrix
 
         basis = self._compiled()
         with jax.enable_x64(True):
@@ -101,7 +101,7 @@ class DictionaryTerm(AdditiveEffect):
         )
 
     def _key(self):
-        from .._basis import _library_key
+        from ..dictionaries._pysindy import _library_key
 
         library = _library_key(self.library, self.input_features, 1) or id(self.library)
         return (DictionaryTerm, self.state, library, self.column, self.coefficient, self.name)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 
-from .._physics import Parameter
+from ..model._physics import Parameter
 from ._base import (
     SHARPNESS,
     InputEffect,

@@ -6,7 +6,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from .._physics import Parameter
+from ..model._physics import Parameter
 from ._base import AdditiveEffect
 from ._terms import _check_exponent, _check_reference, signed_power
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import jax
 import jax.numpy as jnp
 
-from .._physics import Parameter
+from ..model._physics import Parameter
 from ._base import SHARPNESS, Effect, _positive, _widened_range
 from ._hidden import HiddenStates
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import jax
 import numpy as np
 
-from .._physics import Parameter
+from ..model._physics import Parameter
 from ._base import OutputEffect, _checked_corner, _corner_parameters, _hinge_corner
 
 __all__ = ["OutputOffset", "SensorCalibration", "SensorStep"]

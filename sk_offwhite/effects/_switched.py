@@ -6,7 +6,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._physics import Parameter
+from ..model._physics import Parameter
 from ._base import AdditiveEffect, Effect
 
 __all__ = ["Switched", "SwitchedTerm", "switched", "switches"]

@@ -5,7 +5,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from .._physics import Parameter
+from ..model._physics import Parameter
 from ._base import AdditiveEffect
 
 __all__ = ["Bias", "Leak", "PowerLoss", "signed_power"]

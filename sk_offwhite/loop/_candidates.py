@@ -46,7 +46,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._kinds import ACTUATOR_KINDS, LEVEL_KINDS, POSITION_KINDS, VELOCITY_KINDS, Kinds
 from ..effects import (
     Backlash,
     Bias,
@@ -69,6 +68,7 @@ from ..effects import (
     SensorStep,
     Stiffness,
 )
+from ..model._kinds import ACTUATOR_KINDS, LEVEL_KINDS, POSITION_KINDS, VELOCITY_KINDS, Kinds
 from ._hypotheses import Hypothesis
 
 __all__ = ["Candidate", "promoted_terms", "propose_effects", "unique_by_name"]

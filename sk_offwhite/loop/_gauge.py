@@ -35,7 +35,6 @@ from __future__ import annotations
 import jax
 import numpy as np
 
-from .._physics import Parameter, PhysicsModel
 from ..certify._ident_problem import local_problem
 from ..certify._identifiability import (
     direction_loadings,
@@ -44,6 +43,7 @@ from ..certify._identifiability import (
     relative_spectrum,
     variable_scales,
 )
+from ..model._physics import Parameter, PhysicsModel
 
 __all__ = [
     "fit_undetermined_directions",
@@ -175,3 +175,14 @@ def held_note(held: dict, directions, rmse: tuple, cv: tuple) -> str:
         + f". Estimation RMSE {rmse[0]:.4g} -> {rmse[1]:.4g}; CV RMSE {cv[0]:.4g} -> "
         f"{cv[1]:.4g}."
     )
+
+
+def held_on_fit(physics, est, u, z, effects) -> tuple[dict, tuple]:
+    """``(held, directions)``: the directions of ``est``'s fit (of ``physics``, ``effects``
+    added) the data do not determine (none when they cannot be computed) and
+    ``{name: fitted value}`` of the parameter held on each (`held_parameters`)."""
+    try:
+        directions = fit_undetermined_directions(est, u, z)
+    except (ValueError, TypeError, FloatingPointError, np.linalg.LinAlgError):
+        directions = ()
+    return held_parameters(directions, physics, effects, est.parameters_), directions

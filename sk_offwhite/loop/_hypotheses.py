@@ -72,7 +72,7 @@ def feature_variables(feature: str, names: tuple[str, ...]) -> tuple[str, ...]:
 
 def _basis_values(est, run, u) -> np.ndarray:
     """The dictionary ``φ_j`` along the trajectory, shape (n, n_delta, m)."""
-    from .._basis import evaluate_matrix
+    from ..dictionaries import evaluate_matrix
 
     basis, _ = est._compile(est.physics_)
     v = _dictionary_signals(est, run, u)

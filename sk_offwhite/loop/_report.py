@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from ..certify import UnidentifiableWarning, identifiability
+from ._evidence import analyse_model
 from ._hypotheses import _signals
-from ._loop import analyse_model
 from ._scoring import MODEL_LABELS, _protocol_metrics
 
 __all__ = ["write_report"]

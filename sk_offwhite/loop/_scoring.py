@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._path import held_out_errors
 from .._validation import check_record
 from ..diagnose import simulation_metrics
+from ..model_selection import held_out_rmse
 
-__all__ = ["MODEL_LABELS", "held_out_rmse", "score_models"]
+__all__ = ["MODEL_LABELS", "held_out_rmse", "score_models"]  # held_out_rmse: re-exported
 
 MODEL_LABELS = {
     "baseline": "declared physics",
@@ -24,23 +24,6 @@ MODEL_LABELS = {
     "final_with_delta": "augmented physics + δ",
     "final_with_output_delta": "augmented physics + output δ",
 }
-
-
-def held_out_rmse(init_window: int):
-    """Scorer ``(estimator, u, z) -> -RMSE`` of a held-out block's free-run simulation.
-
-    The block's initial state is estimated from its first ``init_window`` measured samples
-    (``predict(u, z_init=...)``), which are not scored: the ``init_window`` protocol applied
-    to a cross-validation block. A non-finite simulation scores ``-DIVERGED_FACTOR *
-    std(z)`` (`DIVERGED_FACTOR`), so one diverging fold ranks a
-    model last without making the mean undefined. The same function scores the held-out
-    blocks of [`fit_gamma_path`][sk_offwhite.fit_gamma_path] (``GammaPath.cv_rmse``).
-    """
-
-    def scorer(estimator, u, z) -> float:
-        return -float(held_out_errors(estimator, u, z, init_window)[1])
-
-    return scorer
 
 
 def _protocol_metrics(est, u, z, protocol: str, init_window: int) -> dict:

@@ -48,9 +48,9 @@ from __future__ import annotations
 import dataclasses
 from typing import NamedTuple
 
-from .._physics import Parameter, PhysicsModel
 from ..effects import Switched, augment, switched
 from ..effects._switched import switches
+from ..model._physics import Parameter, PhysicsModel
 
 __all__ = ["SeparateModels", "Switchboard", "effect_sets", "single_effect_models"]
 

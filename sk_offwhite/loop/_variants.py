@@ -29,8 +29,9 @@ from ..effects import (
     SensorStep,
     Stiffness,
 )
+from ._fits import size
 
-__all__ = ["mechanism", "richer", "richer_start"]
+__all__ = ["mechanism", "representatives", "richer", "richer_start"]
 
 
 @singledispatch
@@ -178,3 +179,23 @@ def _(effect: Friction, values: dict) -> dict:
         variant = richer(effect)
         start[f"{variant.name}_width"] = variant.parameters()[f"{variant.name}_width"]
     return start
+
+
+def representatives(ranked, tolerance: float) -> list:
+    """``ranked`` (``(RMSE, candidate, parameters)``, best first) with one variant per
+    mechanism, in the place of the mechanism's best: the variant with the fewest parameters
+    among those within ``tolerance`` of that best (an overflow whose excess leaves the
+    system rather than one with a fitted fraction, unless the fraction is worth it)."""
+    groups: dict[str, list] = {}
+    for item in ranked:
+        groups.setdefault(mechanism(item[1].effect), []).append(item)
+    return [min(within(group, tolerance), key=n_parameters) for group in groups.values()]
+
+
+def within(group, tolerance: float) -> list:
+    """The items of ``group`` (best first) whose RMSE is within ``tolerance`` of the first."""
+    return [item for item in group if item[0] <= group[0][0] * (1.0 + tolerance)]
+
+
+def n_parameters(item) -> int:
+    return size((item[1].effect,))

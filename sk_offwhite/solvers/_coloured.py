@@ -26,7 +26,7 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from .._objective import ResidualParts, residual_parts
+from ..simulation._objective import ResidualParts, residual_parts
 from ._core import SolverResult, _omega, free_residuals, pushed_forward
 from ._dense import _anchored, _penalised, majorised_cost
 from ._host import lm_loop

@@ -17,11 +17,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._backend import fused_loops
-from .._layout import Layout
-from .._objective import CostWeights, n_fit_residuals, residuals
-from .._rollout import Model
-from .._segments import Segments
+from ..runtime._backend import fused_loops
+from ..simulation._layout import Layout
+from ..simulation._objective import CostWeights, n_fit_residuals, residuals
+from ..simulation._rollout import Model
+from ..simulation._segments import Segments
 
 __all__ = [
     "Problem",

@@ -17,9 +17,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._layout import Layout
-from .._objective import majoriser_constant
-from .._rollout import Model
+from ..simulation._layout import Layout
+from ..simulation._objective import majoriser_constant
+from ..simulation._rollout import Model
 from ._core import Problem, _omega, free_residuals, linearised
 from ._rules import damped_diagonal, held_at_bound
 

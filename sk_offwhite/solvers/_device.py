@@ -21,9 +21,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._layout import Layout
-from .._objective import n_fit_residuals
-from .._rollout import Model
+from ..simulation._layout import Layout
+from ..simulation._objective import n_fit_residuals
+from ..simulation._rollout import Model
 from ._core import Problem, SolverResult, forward_mode
 from ._dense import _lm_advance, _LMState, _origin
 from ._rules import (

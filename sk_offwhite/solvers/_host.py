@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._objective import n_fit_residuals
+from ..simulation._objective import n_fit_residuals
 from ._core import SolverResult
 from ._rules import (
     OUTCOMES,

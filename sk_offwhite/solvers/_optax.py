@@ -15,8 +15,8 @@ import jax.numpy as jnp
 import numpy as np
 from sklearn.exceptions import ConvergenceWarning
 
-from .._layout import Layout
-from .._rollout import Model
+from ..simulation._layout import Layout
+from ..simulation._rollout import Model
 from ._core import Problem, SolverResult, free_residuals
 from ._host import _show
 from ._rules import progress_line

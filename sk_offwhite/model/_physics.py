@@ -21,8 +21,8 @@ from typing import Any
 
 import numpy as np
 
+from ..simulation._rollout import take
 from ._kinds import check_kinds
-from ._rollout import take
 
 __all__ = ["DiscretizedStep", "MeasuredStates", "Parameter", "PhysicsModel", "measured_states"]
 

@@ -27,16 +27,10 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._backend import to_device
+from ..fitting._sparsity import output_scale
+from ..runtime._backend import to_device
+from ..solvers._rules import START_DAMPING, damped_diagonal, next_damping, small_decrease, stop_code
 from ._rollout import simulate
-from ._sparsity import output_scale
-from .solvers._rules import (
-    START_DAMPING,
-    damped_diagonal,
-    next_damping,
-    small_decrease,
-    stop_code,
-)
 
 __all__ = ["estimate_initial_state"]
 

@@ -21,7 +21,7 @@ from collections.abc import Callable, Iterator
 import jax.numpy as jnp
 import numpy as np
 
-from ._rollout import free_run_record
+from ..simulation._rollout import free_run_record
 
 __all__ = ["FIRST_HORIZON", "continuation_start", "within_reach"]
 

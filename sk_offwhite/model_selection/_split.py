@@ -12,7 +12,7 @@ that ``fit`` and ``score`` receive.
 from __future__ import annotations
 
 import warnings
-from numbers import Integral
+from numbers import Integral, Real
 
 import numpy as np
 from sklearn.model_selection import BaseCrossValidator
@@ -57,7 +57,9 @@ class SequenceSplit(BaseCrossValidator):
       fold $j$ trains on $[0, s_j - g)$: the folds of
       ``TimeSeriesSplit(n_splits, gap=gap)``. The training rows are contiguous and
       always precede the test block, but the first block is never tested and the early
-      folds train on little data.
+      folds train on little data. With ``test_size`` (a fraction of the rows, or a number
+      of rows) the test blocks are the last ``n_splits`` blocks of that size instead, and
+      ``n_splits=1`` holds out the record's tail: fitted on the past, run into the future.
 
     With ``"longer"`` and ``"rest"`` the first ``n_samples % n_splits`` blocks have one
     row more than the others, as in ``KFold``. The estimator's ``score`` estimates each
@@ -73,6 +75,9 @@ class SequenceSplit(BaseCrossValidator):
     gap : int, default=0
         Rows left out of the training set on each side of the test block (the samples
         next to it, whose states are the most correlated with the test block's).
+    test_size : float or int, default=None
+        With ``train="forward"`` only: the size of each test block, a fraction of the rows
+        in (0, 1) or a number of rows (``n_splits`` may then be 1).
 
     See Also
     --------
@@ -94,18 +99,32 @@ class SequenceSplit(BaseCrossValidator):
     """
 
     _parameter_constraints: dict = {
-        "n_splits": [Interval(Integral, 2, None, closed="left")],
+        "n_splits": [Interval(Integral, 1, None, closed="left")],
         "train": [StrOptions({"longer", "rest", "forward"})],
         "gap": [Interval(Integral, 0, None, closed="left")],
+        "test_size": [
+            Interval(Real, 0, 1, closed="neither"),
+            Interval(Integral, 1, None, closed="left"),
+            None,
+        ],
     }
 
-    def __init__(self, n_splits: int = 5, *, train: str = "longer", gap: int = 0):
-        params = {"n_splits": n_splits, "train": train, "gap": gap}
+    def __init__(
+        self,
+        n_splits: int = 5,
+        *,
+        train: str = "longer",
+        gap: int = 0,
+        test_size: float | int | None = None,
+    ):
+        params = {"n_splits": n_splits, "train": train, "gap": gap, "test_size": test_size}
         validate_parameter_constraints(self._parameter_constraints, params, type(self).__name__)
         _reject_booleans(params)
+        _check_test_size(n_splits, train, test_size)
         self.n_splits = n_splits
         self.train = train
         self.gap = gap
+        self.test_size = test_size
 
     def get_n_splits(self, X=None, y=None, groups=None) -> int:
         """Number of folds, ``n_splits`` (``X``, ``y`` and ``groups`` are ignored)."""
@@ -134,7 +153,10 @@ class SequenceSplit(BaseCrossValidator):
 
     def _folds(self, n_samples: int) -> list[tuple[list, tuple[int, int]]]:
         """``(training runs, test block)`` of every fold, as ``(start, stop)`` pairs."""
-        bounds = _block_bounds(n_samples, self.n_splits, self.train == "forward")
+        if self.test_size is None:
+            bounds = _block_bounds(n_samples, self.n_splits, self.train == "forward")
+        else:
+            bounds = _tail_bounds(n_samples, self.n_splits, self.test_size)
         tests = list(zip(bounds[:-1], bounds[1:], strict=True))
         tests = tests[1:] if self.train == "forward" else tests
         folds = [(self._training_runs(test, n_samples), test) for test in tests]
@@ -161,9 +183,36 @@ class SequenceSplit(BaseCrossValidator):
             )
 
 
+def _check_test_size(n_splits: int, train: str, test_size) -> None:
+    """``test_size`` belongs to forward chaining; without it there are two folds at least."""
+    if test_size is not None and train != "forward":
+        raise InvalidParameterError(
+            f"The 'test_size' parameter of SequenceSplit needs train='forward', got {train!r}."
+        )
+    if test_size is None and n_splits < 2:
+        raise InvalidParameterError(
+            "The 'n_splits' parameter of SequenceSplit must be at least 2 (1 only with "
+            f"train='forward' and a test_size), got {n_splits!r}."
+        )
+
+
+def _tail_bounds(n_samples: int, n_splits: int, test_size) -> np.ndarray:
+    """Starts of the first training run (0) and of the last ``n_splits`` test blocks of
+    ``test_size`` rows (a fraction of ``n_samples``, at least one row), and ``n_samples``."""
+    size = test_size if isinstance(test_size, Integral) else round(test_size * n_samples)
+    size = max(int(size), 1)
+    first = n_samples - n_splits * size
+    if first < _MIN_RUN:
+        raise ValueError(
+            f"test_size={test_size!r} x {n_splits} fold(s) leaves {max(first, 0)} of "
+            f"{n_samples} samples to train on (at least {_MIN_RUN} needed)."
+        )
+    return np.concatenate([[0], first + size * np.arange(n_splits + 1)])
+
+
 def _reject_booleans(params: dict) -> None:
     """``True`` passes as the integer 1; a count must not be a boolean."""
-    for name in ("n_splits", "gap"):
+    for name in ("n_splits", "gap", "test_size"):
         if isinstance(params[name], bool | np.bool_):
             raise InvalidParameterError(
                 f"The {name!r} parameter of SequenceSplit must be an int, got {params[name]!r}."

@@ -27,7 +27,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._backend import to_device
+from ..runtime._backend import to_device
 from ._segments import pad_rows, padded_length
 
 __all__ = [

@@ -45,9 +45,9 @@ from typing import NamedTuple
 import jax.numpy as jnp
 import numpy as np
 
-from ._backend import to_device
-from ._objective import n_fit_residuals
-from .solvers._core import Problem, SolverResult, fit_cost, jacobian_columns
+from ..runtime._backend import to_device
+from ..simulation._objective import n_fit_residuals
+from ..solvers._core import Problem, SolverResult, fit_cost, jacobian_columns
 
 __all__ = [
     "Reference",

@@ -23,6 +23,8 @@ __all__ = [
     "release_package_programs",
 ]
 
+_ROOT = __package__.partition(".")[0]  # the package whose programs are released
+
 DEFAULT_CACHE = Path("~/.cache/sk_offwhite/xla")
 """Where [`enable_compilation_cache`][sk_offwhite.enable_compilation_cache] keeps programs unless
 told otherwise (or ``$SK_OFFWHITE_CACHE``)."""
@@ -73,7 +75,7 @@ def release_compiled_programs() -> None:
     or loads from disk with [`enable_compilation_cache`][sk_offwhite.enable_compilation_cache]. Fits
     of the same physics reuse their programs and need no release.
     """
-    from ._basis import release_compiled_libraries
+    from ..dictionaries._compile import release_compiled_libraries
 
     release_compiled_libraries()
     jax.clear_caches()
@@ -98,7 +100,7 @@ def release_package_programs() -> int:
     """
     cleared = {}
     for name, module in list(sys.modules.items()):
-        if name.partition(".")[0] != __package__ or module is None:
+        if name.partition(".")[0] != _ROOT or module is None:
             continue
         for value in vars(module).values():
             if callable(getattr(value, "clear_cache", None)) and hasattr(value, "lower"):

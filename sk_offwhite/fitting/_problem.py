@@ -13,17 +13,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._backend import to_device
-from ._layout import Layout
-from ._objective import CostWeights
-from ._physics import PhysicsModel, measured_states
-from ._rollout import Model, free_run_record, theta_dict
-from ._segments import Segments, make_segments
-from ._sparsity import SparseOptions, fit_sparse, output_scale, state_scale
-from ._start import continuation_start, within_reach
-from ._verdict import judged, needs_restart, with_fit_term
-from .effects import Switched
-from .effects._hidden import (
+from ..effects import Switched
+from ..effects._hidden import (
     hidden_bounds,
     hidden_start,
     input_determined,
@@ -31,9 +22,18 @@ from .effects._hidden import (
     sensor_readings,
     with_input_determined,
 )
-from .solvers._core import Problem, SolverResult
-from .solvers._device import PAD_TO, padded_size
-from .solvers._solver import resolve_solver
+from ..model._physics import PhysicsModel, measured_states
+from ..runtime._backend import to_device
+from ..simulation._layout import Layout
+from ..simulation._objective import CostWeights
+from ..simulation._rollout import Model, free_run_record, theta_dict
+from ..simulation._segments import Segments, make_segments
+from ..solvers._core import Problem, SolverResult
+from ..solvers._device import PAD_TO, padded_size
+from ..solvers._solver import resolve_solver
+from ._sparsity import SparseOptions, fit_sparse, output_scale, state_scale
+from ._start import continuation_start, within_reach
+from ._verdict import judged, needs_restart, with_fit_term
 
 __all__ = [
     "FitOutcome",

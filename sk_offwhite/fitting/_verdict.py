@@ -18,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._objective import n_fit_residuals
-from .solvers._core import SolverResult, fit_cost
+from ..simulation._objective import n_fit_residuals
+from ..solvers._core import SolverResult, fit_cost
 
 __all__ = [
     "NO_MODEL_FIT",

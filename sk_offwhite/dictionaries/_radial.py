@@ -23,7 +23,10 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
+import jax.numpy as jnp
 import numpy as np
+
+from ._compiled import _shared_row
 
 __all__ = ["RadialBasis"]
 
@@ -130,3 +133,24 @@ def _check(centers: dict, widths: dict, limits: dict) -> None:
                 f"limits[{name!r}] must be (low, high) with low <= high for a variable of "
                 f"centers; got {bounds!r}."
             )
+
+
+def _compile_radial(library: RadialBasis, features: tuple[str, ...], n_delta: int):
+    """Compile a `RadialBasis` (the row shared by all rows)."""
+    missing = [name for name in library.centers if name not in features]
+    if missing:
+        raise ValueError(f"RadialBasis names {missing}, which are not among {list(features)}.")
+    groups = [
+        (features.index(name), centers, library.widths[name], library.limits.get(name))
+        for name, centers in library.centers.items()
+    ]
+
+    def phi(v: jnp.ndarray) -> jnp.ndarray:
+        columns = [jnp.ones((), v.dtype)] if library.linear else []
+        for j, centers, width, limits in groups:
+            value = v[j] if limits is None else jnp.clip(v[j], *limits)
+            columns += [value] if library.linear else []
+            columns += [jnp.exp(-0.5 * ((value - c) / width) ** 2) for c in centers]
+        return jnp.stack(columns)
+
+    return _shared_row(phi, tuple(library.feature_names()), features, n_delta)

@@ -1,0 +1,93 @@
+"""Stage 3 of the loop: the candidate effects, from the hypotheses, the measured output range
+and the variables' physical kinds, plus the strongest dictionary terms promoted into the
+physics and every constant the user declared relaxable."""
+
+from __future__ import annotations
+
+from ..diagnose import OutputJump, RangeViolation, correlated_inputs, lagging_outputs
+from ..effects._augment import time_step
+from ..effects._hidden import n_declared_states
+from ..effects._laws import relaxations
+from ..model._kinds import Kinds, physical_kinds
+from ..model._physics import measured_states
+from ._candidates import Candidate, promoted_terms, propose_effects, unique_by_name
+from ._evidence import output_names
+from ._search import Search
+from ._variants import mechanism
+
+__all__ = ["candidates", "capped"]
+
+
+def candidates(search: Search, physics, library, hypotheses, facts, run) -> list[Candidate]:
+    """Catalogue effects and promoted dictionary terms, one per name, without those of a
+    mechanism the physics already models (`not_modelled`)."""
+    u, z = search.u, search.z
+    dt = time_step(physics)
+    names = list(physics.state_names) + list(physics.input_names)
+    n_declared, kinds = declared_kinds(physics)
+    found = propose_effects(
+        [h for h in hypotheses if h.equation_index < n_declared],
+        [fact for fact in facts if isinstance(fact, RangeViolation)],
+        physics.state_names[:n_declared],
+        output_names(physics, run.outputs.shape[1]),
+        run.states[:, :n_declared],
+        measured_states(physics.output),
+        u=u,
+        input_names=physics.input_names,
+        kinds=kinds,
+        dt=dt,
+        outputs=run.outputs,
+        jumps=[fact for fact in facts if isinstance(fact, OutputJump)],
+        correlated_inputs=correlated_inputs(z - run.outputs, u),
+        lagging_outputs=lagging_outputs(z - run.outputs, run.outputs),
+    )
+    declared = [
+        Candidate(law, f"{law.parameter} is declared relaxable (fixed at {law.value:g})")
+        for law in relaxations(physics)
+    ]
+    terms = promoted(physics, hypotheses, library, names, dt, search.settings.n_promoted)
+    return not_modelled(physics, unique_by_name(found + terms + declared))
+
+
+def declared_kinds(physics) -> tuple[int, Kinds]:
+    """The number of declared states and their kinds (`physical_kinds`), the hidden
+    states' left out: effects act on declared states only (an effect's hidden states are no
+    levels or velocities of the plant)."""
+    n_declared = n_declared_states(physics)
+    kinds = physical_kinds(physics)
+    partner = {v: p for v, p in kinds.partner.items() if max(v, p) < n_declared}
+    return n_declared, kinds._replace(states=kinds.states[:n_declared], partner=partner)
+
+
+def promoted(physics, hypotheses, library, names, dt: float, limit: int) -> list:
+    """The strongest dictionary terms as candidates
+    ([`promoted_terms`][sk_offwhite.loop.promoted_terms]), none on a physics with hidden
+    states: the dictionary reads the commands, where a term in the declared step would read
+    the input the effects deliver (a backlash's, a delay's), another function."""
+    if physics.n_states > n_declared_states(physics):
+        return []
+    return promoted_terms(hypotheses, library, names, dt, limit)
+
+
+def not_modelled(physics, proposed: list) -> list:
+    """``proposed`` without the candidates whose mechanism an effect of ``physics`` already
+    models: run on an augmented physics (its own result, say), the loop would otherwise
+    propose an effect it holds, or a second variant of one mechanism."""
+    modelled = {mechanism(effect) for effect in getattr(physics, "effects", ())}
+    return [c for c in proposed if mechanism(c.effect) not in modelled]
+
+
+def capped(proposed: list, limit: int | None) -> list:
+    """The candidates of the first ``limit`` mechanisms in the order proposed, every
+    variant of those mechanisms included: a cap counts what is tried, not how many shapes of
+    it are (a saturation's two, an overflow's destinations)."""
+    if limit is None:
+        return list(proposed)
+    kept, mechanisms = [], []
+    for candidate in proposed:
+        kind = mechanism(candidate.effect)
+        if kind not in mechanisms and len(mechanisms) < limit:
+            mechanisms.append(kind)
+        if kind in mechanisms:
+            kept.append(candidate)
+    return kept

@@ -1,0 +1,227 @@
+r"""Stage 4 of the loop: which effects the physics gains.
+
+Each candidate is fitted alone on the estimation record (`rank_alone`); forward selection
+then adds, among the ``beam`` best, the candidate that lowers the estimation error most
+while it lowers it by ``min_gain`` (`forward`; when no candidate helps alone, the best pair
+of the strongest is tried: effects such as Coulomb friction and a force offset only help
+together). The sets of that order, and the nested sets of the candidates that helped alone
+in the order of their gain, are cross-validated, each from its own fit on the whole record;
+the smallest within ``tolerance`` of the best is kept if it beats the declared physics by
+``min_gain``, then refined stepwise (`sk_offwhite.loop._refinement`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..effects import DictionaryTerm
+from ._cv import structure_cv
+from ._fits import label, own, quick_fit
+from ._proposals import capped
+from ._refinement import swap
+from ._search import Search
+from ._sets import best_of, sets_cv
+from ._switchboard import Switchboard, effect_sets, single_effect_models
+from ._variants import mechanism, representatives, richer
+
+__all__ = ["select_effects"]
+
+
+def select_effects(search: Search, physics, candidates, base_rmse, declared_cv=None):
+    """Effect sets by forward selection and nested by single gain, chosen by CV RMSE.
+
+    A set's effects are composed in the order of the single fits; with ``share_programs``
+    all sets are fitted on one `Switchboard`. Returns the chosen effects (in that order),
+    the CV trail (starting with ``declared_cv``, computed when ``None``), the single-fit
+    RMSEs, the effects' fitted parameters (the start of the final fit) and each set's fit
+    on the whole record by the trail's labels.
+    """
+    settings = search.settings
+    if declared_cv is None:
+        declared_cv = structure_cv(search, physics)
+    candidates = capped(candidates, settings.max_candidates)
+    ranked = search.released(rank_alone(search, physics, candidates))
+    # sets compose their effects in the order of the single fits (best first)
+    variants = with_richer([c.effect for _, c, _ in ranked])
+    board = effect_sets(physics, variants, settings.share_programs)
+    singles = [(c.effect.name, r) for r, c, _ in ranked]
+    steps = search.released(forward(search, board, ranked, base_rmse))
+    steps = by_size(best_starts(search, board, steps + nested(ranked, base_rmse, settings)))
+    trail, fits = [("declared physics", declared_cv)], {}
+    for name, score, fitted in sets_cv(search, board, steps):
+        fits[name] = fitted
+        trail.append((name, score))
+    k = smallest_within([s for _, s in trail], settings.tolerance)
+    if k == 0 or trail[k][1] > (1.0 - settings.min_gain) * trail[0][1]:
+        return (), trail, singles, {}, fits
+    chosen, warm, _ = steps[k - 1]
+    chosen, warm, rows = swap(search, board, ranked, (chosen, warm, trail[k][1]), fits)
+    rescored = {name for name, _ in rows}
+    trail = [row for row in trail if row[0] not in rescored] + rows
+    return board.ordered(chosen), trail, singles, warm, fits
+
+
+def rank_alone(search: Search, physics, candidates):
+    """``(estimation RMSE, candidate, fitted effect parameters)`` of each candidate added
+    to ``physics`` alone, best first (``inf`` and a line in ``failures`` where the fit
+    failed); a named effect ranks before a promoted term unless the term is better by
+    ``tolerance``.
+
+    The candidates are fitted on a switchboard where they can share one, in this process:
+    each fit compiles nothing after the first, and a worker would compile the board's
+    programs again for itself. The others are fitted by ``n_jobs`` processes, each on its
+    own model."""
+    settings = search.settings
+    effects = [c.effect for c in candidates]
+    if settings.share_programs:
+        models = [effect_sets(physics, effects, True)] * len(effects)
+    else:
+        models = single_effect_models(physics, effects)
+    worker = search.detached()
+    calls = [
+        (f"candidate {effect.name}", quick_fit, worker, model, (effect,), {})
+        for effect, model in zip(effects, models, strict=True)
+    ]
+    on_board = [isinstance(model, Switchboard) for model in models]
+    fitted = search.attempt_split(calls, on_board)
+    ranked = [
+        (np.inf, candidate, {}) if fit is None else (fit[0], candidate, fit[1])
+        for candidate, fit in zip(candidates, fitted, strict=True)
+    ]
+    return sorted(ranked, key=lambda item: item[0] * handicap(item[1].effect, settings))
+
+
+def handicap(effect, settings) -> float:
+    """A promoted dictionary term must beat a named effect by ``tolerance`` to rank first."""
+    return 1.0 + settings.tolerance if isinstance(effect, DictionaryTerm) else 1.0
+
+
+def forward(search: Search, board, ranked, base_rmse):
+    """Forward selection: ``[(effects, warm parameters, estimation RMSE)]`` for each step.
+
+    The pool holds the ``beam`` best candidates alone of distinct mechanisms (one variant
+    of each, `representatives`; a set never holds two variants of one) and every relaxed
+    declared law: a law the user marked relaxable is always tried on top of the effects
+    chosen so far, whose absence may be what made it look useless alone.
+    """
+    settings = search.settings
+    pool = forward_pool(ranked, settings)
+    steps, current, current_rmse = [], [], base_rmse
+    if pool and pool[0][2] <= (1.0 - settings.min_gain) * base_rmse:
+        steps.append(((pool[0][0],), pool[0][1], pool[0][2]))
+        current, current_rmse = [pool[0][0]], pool[0][2]
+    else:
+        pool, steps = [], best_pair(search, board, pool[:3], base_rmse)
+        if steps:
+            current, current_rmse = list(steps[0][0]), steps[0][2]
+    while len(current) < settings.max_effects:
+        step = forward_step(search, board, pool, current, steps[-1][1] if steps else {})
+        if step is None or step[2] > (1.0 - settings.min_gain) * current_rmse:
+            break
+        current, current_rmse = list(step[0]), step[2]
+        steps.append(step)
+    return steps
+
+
+def forward_pool(ranked, settings) -> list:
+    """``(effect, parameters, RMSE)`` of the ``beam`` best representatives and every
+    relaxed law beyond them."""
+    finite = [item for item in ranked if np.isfinite(item[0])]
+    fitted = [(c.effect, p, r) for r, c, p in representatives(finite, settings.tolerance)]
+    laws = [item for item in fitted[settings.beam :] if item[0].target == "law"]
+    return fitted[: settings.beam] + laws
+
+
+def forward_step(search: Search, board, pool, current, warm):
+    """The best set of ``current`` and one more effect of ``pool`` of another mechanism,
+    ``(effects, parameters, RMSE)``, or ``None`` when no such fit succeeds."""
+    taken = {mechanism(effect) for effect in current}
+    added = [(effect, params) for effect, params, _ in pool if mechanism(effect) not in taken]
+    worker = search.detached()
+    calls = [
+        ("effects " + label((*current, effect)), quick_fit, worker, board, (*current, effect),
+         {**warm, **own(params, effect)})
+        for effect, params in added
+    ]  # fmt: skip
+    fitted = search.attempt_all(calls)
+    trials = [
+        (f[0], effect, f[1]) for (effect, _), f in zip(added, fitted, strict=True) if f is not None
+    ]
+    if not trials:
+        return None
+    rmse, effect, params = min(trials, key=lambda t: t[0] * handicap(t[1], search.settings))
+    return (*current, effect), params, rmse
+
+
+def best_pair(search: Search, board, pool, base_rmse):
+    """When no candidate helps alone: the best pair of the ``pool`` if it helps."""
+    best = None
+    for a in range(len(pool)):
+        for b in range(a + 1, len(pool)):
+            effects = (pool[a][0], pool[b][0])
+            name = "effects " + " + ".join(e.name for e in effects)
+            warm = {**pool[a][1], **own(pool[b][1], pool[b][0])}
+            fitted = search.attempt(name, quick_fit, search, board, effects, warm)
+            if fitted is not None and (best is None or fitted[0] < best[2]):
+                best = (effects, fitted[1], fitted[0])
+    if best is None or best[2] > (1.0 - search.settings.min_gain) * base_rmse:
+        return []
+    return [best]
+
+
+def nested(ranked, base_rmse, settings):
+    """The nested sets of the candidates that helped alone, in the order of their gain
+    (the declared parameters start from the first one's fit, each effect from its own)."""
+    helped = [item for item in ranked if item[0] < base_rmse]
+    kept = [(c.effect, p) for _, c, p in representatives(helped, settings.tolerance)]
+    kept = kept[: settings.max_effects]
+    return [
+        (
+            tuple(e for e, _ in kept[:k]),
+            {**kept[0][1], **{n: p for e, ps in kept[1:k] for n, p in own(ps, e).items()}},
+            None,
+        )
+        for k in range(1, len(kept) + 1)
+    ]
+
+
+def best_starts(search: Search, board, steps) -> list:
+    """``steps`` with each effect set that more than one step reaches from different
+    starts (forward selection and the nested sets) fitted from all of them, the step
+    keeping the fit of lowest estimation RMSE (in the place of its first occurrence): the
+    loop's cost is not convex in the effects' parameters, and which step came first must
+    not decide which of a set's fits is cross-validated."""
+    groups: dict[frozenset, list] = {}
+    for step in steps:
+        groups.setdefault(frozenset(e.name for e in step[0]), []).append(step)
+    several = [g for g in groups.values() if len({start_key(s[1]) for s in g}) > 1]
+    fitted = best_of(search, board, [(g[0][0], [s[1] for s in g]) for g in several])
+    best = {id(g[0]): (g[0][0], fit[1], fit[0]) for g, fit in zip(several, fitted, strict=True)
+            if fit is not None}  # fmt: skip
+    return [best.get(id(step), step) for step in steps]
+
+
+def start_key(start: dict) -> str:
+    """A start's parameter values, comparable between steps."""
+    return repr(sorted((name, repr(value)) for name, value in start.items()))
+
+
+def by_size(steps):
+    """``steps`` without repeated effect sets, smallest sets first (stable)."""
+    unique = {}
+    for step in steps:
+        unique.setdefault(frozenset(e.name for e in step[0]), step)
+    return sorted(unique.values(), key=lambda step: len(step[0]))
+
+
+def smallest_within(scores: list[float], tolerance: float) -> int:
+    """Index of the first score within ``tolerance`` (relative) of the smallest."""
+    best = min(scores)
+    return next(k for k, s in enumerate(scores) if s <= best * (1.0 + tolerance))
+
+
+def with_richer(effects) -> list:
+    """``effects`` with each one's richer variant right after it: the sets the refinement
+    may reach."""
+    pairs = ((effect, richer(effect)) for effect in effects)
+    return [variant for pair in pairs for variant in pair if variant is not None]
