@@ -60,7 +60,7 @@ POSITIVE = (1e-9, None)
 # --------------------------------------------------------------------------------------
 
 
-def law_factor(family: str, v, constants: dict):
+def _law_factor(family: str, v, constants: dict):
     r"""$g(v)$ of `family` with `constants` (`x_s`, and `p` for the power law, `sign` $\pm 1$
     for the polynomial), in `jax.numpy`."""
     scaled = v / constants["x_s"]
@@ -89,10 +89,10 @@ class _Law:
     def factor(self, x, u):
         """$g(v)$ at the state `x` and input `u`."""
         source = x if self.where[0] == "state" else u
-        return law_factor(self.family, source[self.where[1]], dict(self.constants))
+        return _law_factor(self.family, source[self.where[1]], dict(self.constants))
 
 
-class VaryingRhs:
+class _VaryingRhs:
     """A right-hand side `rhs(x, u, theta)` with `theta[law.parameter]` multiplied by the
     law's $g(v)$ at the current state and input (picklable, compared by value)."""
 
@@ -106,10 +106,10 @@ class VaryingRhs:
         return self.rhs(x, u, scaled)
 
     def __eq__(self, other) -> bool:
-        return isinstance(other, VaryingRhs) and (other.rhs, other.law) == (self.rhs, self.law)
+        return isinstance(other, _VaryingRhs) and (other.rhs, other.law) == (self.rhs, self.law)
 
     def __hash__(self) -> int:
-        return hash((VaryingRhs, self.rhs, self.law))
+        return hash((_VaryingRhs, self.rhs, self.law))
 
 
 # --------------------------------------------------------------------------------------
@@ -211,7 +211,7 @@ def _generate(plant: _Plant, n_samples, noise_std, random_state, process_noise_s
     default = plant.noise_std if noise_std is None else noise_std
     stds = _noise_stds(default, process_noise_std)
     rng = check_random_state(random_state)
-    truth = _model(plant, VaryingRhs(plant.rhs, plant.law), plant.theta, plant.x0)
+    truth = _model(plant, _VaryingRhs(plant.rhs, plant.law), plant.theta, plant.x0)
     est, val = (_record(rng, n, plant, truth, stds) for _ in range(2))
     kinds = {"states": plant.kinds[0], "inputs": plant.kinds[1]}
     return Bunch(
@@ -263,7 +263,7 @@ _SPRING = _Plant(
     process_state=1,
     descr="Mass-spring-damper m q'' = F - c q' - k(q) q [SI units], m=0.5 kg, c=0.6 N s/m, "
     "k(q) = k (1 + (q/q_s)^2) with k=20 N/m and q_s=0.04 m (a hardening spring), RK4 "
-    "dt=0.01 s, deflection measured; the physics declares a constant stiffness k.\n",
+    "dt=0.01 s, deflection measured; the physics knows m and declares a constant stiffness k.\n",
 )
 
 
@@ -285,9 +285,10 @@ def make_hardening_spring(
 
     with $m = 0.5$ kg, $c = 0.6$ N s/m, $k = 20$ N/m and $q_s = 0.04$ m (deflection $q$ in m,
     velocity $v$ in m/s, force $F$ in N). The declared physics has the constant stiffness
-    $k$ and fits $m$, $c$ and $k$. The force is a multisine of 0–2 Hz (0.02 cycles per sample)
-    with a standard deviation of 1.5 N around the 1 Hz natural frequency, so that $|q|$
-    reaches about $2\,q_s$ and the stiffness several times $k$. The mass starts at rest.
+    $k$, knows the mass (`m` fixed at 0.5 kg) and fits $c$ and $k$. The force is a
+    multisine of 0–2 Hz (0.02 cycles per sample) with a standard deviation of 0.8 N around
+    the 1 Hz natural frequency, so that $|q|$ reaches about $2.5\,q_s$, where the stiffness
+    is seven times $k$. The mass starts at rest.
 
     Parameters
     ----------
@@ -295,7 +296,7 @@ def make_hardening_spring(
         Length of each record.
     noise_std : float or None, default=None
         Standard deviation (m) of the Gaussian deflection-sensor noise; `None` means
-        `1e-3` m, about 2 % of the deflection's standard deviation.
+        `1e-3` m, about 3 % of the deflection's standard deviation.
     random_state : int, RandomState instance or None, default=None
         Seed of the input and noise realisations.
     process_noise_std : float, default=0.0
@@ -364,8 +365,8 @@ def make_saturating_inductor(
     differential inductance of an iron core that saturates. The declared physics has the
     constant inductance $L$ and fits $R$ and $L$. The voltage is a multisine of 0–10 Hz
     (0.01 cycles per sample) with a standard deviation of 2.5 V, so that $|i|$ reaches
-    about $3\,i_s$, where the inductance is a tenth of $L$; the time constant $L/R$ falls
-    from 25 ms to about 2.5 ms there. The circuit starts without current.
+    about $3.5\,i_s$, where the inductance is a thirteenth of $L$ and the time constant
+    $L(i)/R$ about 2 ms instead of 25 ms. The circuit starts without current.
 
     Parameters
     ----------
@@ -447,21 +448,22 @@ def make_valve_tank(
     C_v(a) = C_v\,\Big|\frac{a}{a_s}\Big|^p, \qquad z = h + \eta,
     $$
 
-    with $A = 0.1$ m² (declared, fixed), $k_{out} = 10^{-3}$ m^2.5^/s, $C_v = 1.5\cdot
-    10^{-3}$ m³/s, $a_s = 0.5$ and $p = 0.6$ (level $h$ in m, opening $a$ between 0 and 1):
-    the valve's coefficient equals $C_v$ at half opening, and the inflow grows as
+    with $A = 0.1$ m² (declared, fixed), $k_{out} = 10^{-3}$ m$^{2.5}$/s,
+    $C_v = 1.5\cdot 10^{-3}$ m³/s, $a_s = 0.5$ and $p = 0.6$ (level $h$ in m, opening $a$
+    between 0 and 1): the valve's coefficient equals $C_v$ at half opening, and the inflow grows as
     $a^{1.6}$ instead of $a$. The declared physics has the constant coefficient $C_v$ and
-    fits $C_v$ and $k_{out}$. The opening is a multisine of 0–2.5 mHz (0.005 cycles per
-    sample) around 0.5 with a standard deviation of 0.18, clipped to $[0.05, 1]$; the level
-    moves between about 0.1 m and 3 m with a time constant of 1–3 minutes. The tank starts
-    at the level of the mean opening.
+    fits $C_v$ and $k_{out}$ (the area is known). The opening is a multisine of 0–2.5 mHz
+    (0.005 cycles per sample) around 0.55 with a standard deviation of 0.15, clipped to
+    $[0.2, 1]$; the level moves between about 0.1 m and 2 m with a time constant of 2–4
+    minutes. The tank starts at the level of the mean opening.
 
     Parameters
     ----------
     n_samples : int, default=2000
         Length of each record.
     noise_std : float or None, default=None
-        Standard deviation (m) of the Gaussian level-sensor noise; `None` means `5e-3` m.
+        Standard deviation (m) of the Gaussian level-sensor noise; `None` means `5e-3` m,
+        about 1.5 % of the level's standard deviation.
     random_state : int, RandomState instance or None, default=None
         Seed of the input and noise realisations.
     process_noise_std : float, default=0.0
@@ -532,8 +534,9 @@ def make_piezoviscous_bearing(
     viscosity grows by $e$ for every 40 MPa of pressure. The declared physics has the
     constant coefficient $b$ and fits $J$ and $b$. The torque is a multisine of 0–1 Hz
     (0.02 cycles per sample) with a standard deviation of 0.05 N m; the pressure a slower
-    one (0.004 cycles per sample) around 40 MPa with a standard deviation of 20 MPa,
-    floored at 0, so that the friction varies about tenfold. The rotor starts at rest.
+    one (0.004 cycles per sample) around 60 MPa with a standard deviation of 30 MPa,
+    floored at 0, so that it reaches about 130 MPa, where the friction is 25 times $b$. The
+    rotor starts at rest.
 
     Parameters
     ----------
@@ -541,7 +544,7 @@ def make_piezoviscous_bearing(
         Length of each record.
     noise_std : float or None, default=None
         Standard deviation (rad/s) of the Gaussian speed-sensor noise; `None` means `2e-2`
-        rad/s, about 1 % of the speed's standard deviation.
+        rad/s, about 2.5 % of the speed's standard deviation.
     random_state : int, RandomState instance or None, default=None
         Seed of the input and noise realisations.
     process_noise_std : float, default=0.0
