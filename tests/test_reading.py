@@ -59,7 +59,7 @@ def exact_readings(generated):
 
 
 def law_at(data, v) -> np.ndarray:
-    """The true law $\\theta_j(v)$ from the ground truth's words."""
+    r"""The true law $\theta_j(v)$ from the ground truth's words."""
     varying = data.varying
     theta = data.true_parameters[varying["parameter"]]
     scaled = np.asarray(v) / varying["constants"]["x_s"]

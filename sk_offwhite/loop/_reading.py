@@ -309,7 +309,7 @@ def _checked_theta(physics: PhysicsModel, theta: Mapping) -> dict:
 
 
 def _neutral_law(n_parameters: int, n_variables: int, parameter: int, variable: int) -> dict:
-    """The law $g = 1$ (the polynomial at $A = 1$, $\beta = 0$) on one parameter and one
+    r"""The law $g = 1$ (the polynomial at $A = 1$, $\beta = 0$) on one parameter and one
     variable, its normalisation still unset."""
     return {
         "parameter": np.eye(n_parameters)[parameter],
