@@ -9,13 +9,13 @@ import numpy as np
 import pytest
 
 from sk_offwhite import GreyBoxSparseRegressor
-from sk_offwhite._physics import DiscretizedStep
 from sk_offwhite.datasets._varying import (
     make_hardening_spring,
     make_piezoviscous_bearing,
     make_saturating_inductor,
     make_valve_tank,
 )
+from sk_offwhite.model._physics import DiscretizedStep
 
 GENERATORS = {
     "spring": make_hardening_spring,

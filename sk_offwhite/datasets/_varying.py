@@ -36,7 +36,6 @@ import jax.numpy as jnp
 import numpy as np
 from sklearn.utils import Bunch, check_random_state
 
-from sk_offwhite._physics import Parameter, PhysicsModel
 from sk_offwhite.datasets._common import (
     _check_n_samples,
     _gaussian,
@@ -44,6 +43,7 @@ from sk_offwhite.datasets._common import (
     _noise_stds,
     _rollout,
 )
+from sk_offwhite.model._physics import Parameter, PhysicsModel
 
 __all__ = [
     "make_hardening_spring",

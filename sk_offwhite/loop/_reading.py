@@ -59,8 +59,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .._kinds import POSITION_KINDS
-from .._physics import DiscretizedStep, PhysicsModel
+from ..model._kinds import POSITION_KINDS
+from ..model._physics import DiscretizedStep, PhysicsModel
 
 __all__ = ["FAMILIES", "MIN_EXPLAINED", "VaryingReading", "read_varying_parameters"]
 
