@@ -42,14 +42,17 @@ def cpu_model() -> str:
 
 
 def machine() -> dict:
-    """CPU model, cores available to this process, OS and Python."""
+    """CPU model, cores available to this process, the load average when the results were
+    written (other work on the machine slows every timing), OS and Python."""
     try:
         cores = len(os.sched_getaffinity(0))
     except AttributeError:
         cores = os.cpu_count()
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
     return {
         "cpu": cpu_model(),
         "cores": cores,
+        "load_average": load,
         "system": f"{platform.system()} {platform.release()}",
         "python": platform.python_version(),
     }

@@ -66,10 +66,12 @@ def context_line(results: dict) -> str:
     versions = results.get("versions", {})
     shown = ", ".join(f"{k} {versions[k]}" for k in SHOWN_VERSIONS if k in versions)
     date = str(results.get("date", "unknown date"))[:10]
+    load = machine.get("load_average")
+    load = f", load average {load:.1f} at the end" if isinstance(load, int | float) else ""
     return (
         f"Measured on {date} on {machine.get('cpu', 'an unknown CPU')}, "
-        f"{machine.get('cores', '?')} cores (Python {machine.get('python', '?')}; {shown}), "
-        f"by `{results.get('command', '?')}`."
+        f"{machine.get('cores', '?')} cores{load} (Python {machine.get('python', '?')}; "
+        f"{shown}), by `{results.get('command', '?')}`."
     )
 
 
