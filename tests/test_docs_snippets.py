@@ -9,8 +9,9 @@ opts out only with a marker on the line before its fence (blank lines between ar
 - ``<!-- requires: MODULE -->``: run only where ``MODULE`` can be imported (an optional
   extra), skipped otherwise.
 
-Each file is one test, run in a temporary working directory; it runs every block even after
-one fails and reports every failure with its line and exception.
+Each file is one test class (so that pytest-xdist spreads the files over its workers), run
+in a temporary working directory; it runs every block even after one fails and reports
+every failure with its line and exception.
 """
 
 from __future__ import annotations
@@ -92,8 +93,9 @@ def _ids(path: Path) -> str:
     return path.relative_to(ROOT).as_posix()
 
 
-@pytest.mark.parametrize("path", FILES, ids=_ids)
-def test_python_blocks_run_as_printed(path, tmp_path, monkeypatch):
+def run_blocks(path: Path, tmp_path, monkeypatch) -> None:
+    """Run the Python blocks of ``path`` in order in one namespace; fail listing every block
+    that raised."""
     blocks = python_blocks(path.read_text(encoding="utf-8"))
     if not blocks:
         pytest.skip("no Python block")
@@ -122,3 +124,19 @@ def test_python_blocks_run_as_printed(path, tmp_path, monkeypatch):
         timings.append(f"{where} {time.perf_counter() - start:.1f} s")
     print("\n".join(timings + [f"skipped {s}" for s in skipped]))
     assert not failures, "blocks that do not run as printed:\n" + "\n".join(failures)
+
+
+def _file_class(path: Path) -> type:
+    """A test class for one file: pytest-xdist's ``--dist loadscope`` sends each class to a
+    worker of its own, so the files' blocks run in parallel across workers."""
+
+    def test_python_blocks_run_as_printed(self, tmp_path, monkeypatch):
+        run_blocks(path, tmp_path, monkeypatch)
+
+    name = "TestBlocks_" + re.sub(r"\W", "_", _ids(path).removesuffix(".md"))
+    return type(name, (), {"test_python_blocks_run_as_printed": test_python_blocks_run_as_printed})
+
+
+for _path in FILES:
+    _class = _file_class(_path)
+    globals()[_class.__name__] = _class
