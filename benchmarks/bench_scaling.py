@@ -29,10 +29,10 @@ from sklearn.model_selection import GridSearchCV, KFold
 
 from sk_offwhite import GreyBoxSparseRegressor
 from sk_offwhite._layout import Layout
-from sk_offwhite._optim import free_residuals
 from sk_offwhite._problem import bound_blocks, free_blocks, initial_blocks, make_problem
 from sk_offwhite._segments import make_segments
 from sk_offwhite.datasets import cascaded_tanks_physics
+from sk_offwhite.solvers._core import free_residuals
 
 GAMMAS = (1e-5, 1e-4, 1e-3, 1e-2, 1e-1)
 

@@ -34,7 +34,8 @@ def _solvers(model, layout, problem, free0) -> dict:
     """Zero-argument calls returning ``(free, iterations)`` for each solver."""
     import optimistix as optx
 
-    from sk_offwhite._optim import free_residuals, levenberg_marquardt
+    from sk_offwhite.solvers._core import free_residuals
+    from sk_offwhite.solvers._device import levenberg_marquardt_on_device as levenberg_marquardt
 
     def ours():
         result = levenberg_marquardt(free0, problem, model, layout, max_iter=MAX_STEPS, tol=1e-10)
@@ -71,7 +72,7 @@ def compare(repeats: int) -> list[dict]:
     """One row per case and solver."""
     import pysindy as ps
 
-    from sk_offwhite._optim import free_residuals
+    from sk_offwhite.solvers._core import free_residuals
 
     rows = []
     with jax.enable_x64(True):

@@ -247,8 +247,9 @@ def _solver_programs(model, layout, problem, free0) -> dict:
     import jax
     import numpy as np
 
-    from sk_offwhite._lm_device import levenberg_marquardt_on_device
-    from sk_offwhite._optim import _lm_advance, _origin, first_state, free_residuals
+    from sk_offwhite.solvers._core import free_residuals
+    from sk_offwhite.solvers._dense import _lm_advance, _origin, first_state
+    from sk_offwhite.solvers._device import levenberg_marquardt_on_device
 
     static = dict(model=model, layout=layout, forward=True)
     state = first_state(free0, problem, scaling="per-variable", **static)
@@ -408,7 +409,7 @@ def creeping_runs(path_calls) -> dict:
     ``path_calls``: the second value of `grid_against_one`."""
     import jax
 
-    from sk_offwhite._lm_device import levenberg_marquardt_on_device
+    from sk_offwhite.solvers._device import levenberg_marquardt_on_device
 
     _, calls = path_calls
     unfinished = [
@@ -439,7 +440,7 @@ def _trust_region(free0, problem, model, layout):
     import numpy as np
     from scipy.optimize import least_squares
 
-    from sk_offwhite._optim import free_residuals
+    from sk_offwhite.solvers._core import free_residuals
 
     residual = jax.jit(partial(free_residuals, problem=problem, model=model, layout=layout))
     jacobian = jax.jit(jax.jacfwd(residual))
@@ -470,7 +471,7 @@ def _device_run(free0, problem, model, layout, *, max_iter, tol, scaling, **_):
     """``(run_at, start)``: the whole device run of
     `levenberg_marquardt_on_device`'s arguments as a function
     of γ and its start carry (`device_run`)."""
-    from sk_offwhite import _lm_device as device
+    from sk_offwhite.solvers import _device as device
 
     start, problem, static = device.device_run(free0, problem, model, layout, max_iter, scaling)
 

@@ -3,8 +3,17 @@
 from ._backend import enable_fused_loops
 from ._basis import RidgeBasis, compile_basis
 from ._cache import enable_compilation_cache, release_compiled_programs, release_package_programs
-from ._delay import InputDelay
-from ._effects import (
+from ._estimator import (
+    DivergenceWarning,
+    GreyBoxSparseRegressor,
+    RunawayParameterWarning,
+    expected_failed_checks,
+)
+from ._path import GammaPath, fit_gamma_path, gamma_grid
+from ._physics import Parameter, PhysicsModel
+from ._radial import RadialBasis
+from ._splitters import SequenceSplit, SequenceWarning
+from .effects import (
     AdditiveEffect,
     Backlash,
     Bias,
@@ -13,6 +22,7 @@ from ._effects import (
     DifferenceDeadZone,
     Effect,
     Friction,
+    InputDelay,
     InputLag,
     InputSaturation,
     Leak,
@@ -25,23 +35,13 @@ from ._effects import (
     QuadraticDrag,
     RelaxedLaw,
     SensorCalibration,
+    SensorLag,
     SensorStep,
     Stiffness,
     Switched,
     augment,
     switched,
 )
-from ._estimator import (
-    DivergenceWarning,
-    GreyBoxSparseRegressor,
-    RunawayParameterWarning,
-    expected_failed_checks,
-)
-from ._path import GammaPath, fit_gamma_path, gamma_grid
-from ._physics import Parameter, PhysicsModel
-from ._radial import RadialBasis
-from ._sensor_lag import SensorLag
-from ._splitters import SequenceSplit, SequenceWarning
 
 __all__ = [
     "AdditiveEffect",

@@ -19,10 +19,8 @@ from sklearn.utils.validation import _check_feature_names, _check_sample_weight,
 from ._backend import to_device
 from ._basis import compile_basis
 from ._equations import format_equations
-from ._hidden import n_declared_states
 from ._initial import estimate_initial_state
 from ._objective import CostWeights
-from ._optim import LM_SCALINGS
 from ._physics import PhysicsModel
 from ._problem import (
     SolverOptions,
@@ -43,6 +41,9 @@ from ._validation import (
     is_experiment_list,
 )
 from ._verdict import runaway_parameters
+from .effects._hidden import n_declared_states
+from .solvers import LevenbergMarquardt, Optax
+from .solvers._rules import LM_SCALINGS
 
 __all__ = ["GreyBoxSparseRegressor"]
 
@@ -187,23 +188,20 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         closer to L1); dimensionless like ``gamma``.
     shooting_weight : float, default=10.0
         Weight of the window-continuity penalty when ``horizon`` is set.
-    solver : {'auto', 'lm', 'optax'}, default='auto'
-        ``'lm'``: projected Levenberg-Marquardt with forward-mode Jacobians; ``'optax'``:
-        ``optimizer`` with reverse-mode gradients; ``'auto'``: LM with a ``horizon`` or up
-        to 400 free variables. With a horizon and over 100 free variables LM builds the
-        Jacobian by window colouring (``G + 2 n_x`` tangents for ``G`` global variables,
-        however many windows) and solves sparse normal equations.
+    solver : {'auto', 'lm', 'optax'} or solver object, default='auto'
+        A [`LevenbergMarquardt`][sk_offwhite.solvers.LevenbergMarquardt] or an
+        [`Optax`][sk_offwhite.solvers.Optax] object, or the name of one: ``'lm'`` is
+        ``LevenbergMarquardt(scaling=lm_scaling)``, ``'optax'`` is
+        ``Optax(optimizer=optimizer)``, and ``'auto'`` Levenberg-Marquardt with a ``horizon``
+        or up to 400 free variables, the optax loop above.
     lm_scaling : {'per-variable', 'global'}, default='per-variable'
-        Levenberg-Marquardt's scaling $D$ in $(J^TJ + \mu D)s = -J^Tr$:
-        $\mathrm{diag}(J^TJ)$ plus a floor of $10^{-9}$ times, with
-        ``'per-variable'``, the largest $(J^TJ)_{ii}$ that variable has had in the run,
-        so rescaling a state, an input or a dictionary column leaves the iterates the same
-        up to rounding (a fit that stops short of a minimum stops at the same model); with
-        ``'global'`` (the previous rule), the largest entry of all variables now, one floor
-        for all, so the iterates depend on the units.
+        The scaling of the Levenberg-Marquardt that ``solver='auto'`` or ``'lm'`` builds (see
+        [`LevenbergMarquardt`][sk_offwhite.solvers.LevenbergMarquardt]): with
+        ``'per-variable'`` rescaling a state, an input or a dictionary column leaves the
+        iterates the same up to rounding.
     optimizer : optax.GradientTransformation, default=None
-        Used by the optax solver; ``None`` is Adam (cosine-decayed from 1e-2) behind global
-        norm clipping at 1.
+        The optimizer of the optax loop that ``solver='auto'`` or ``'optax'`` builds; ``None``
+        is Adam (cosine-decayed from 1e-2) behind global norm clipping at 1.
     max_iter : int, default=200
         Maximum number of solver iterations.
     tol : float, default=1e-10
@@ -218,7 +216,8 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         records, initial states) instead of the physics' guesses, e.g. to refine a
         short-``horizon`` fit with ``horizon=None``.
     verbose : int, default=0
-        Print solver progress every 10 iterations (every iteration if > 1).
+        Print solver progress every 10 iterations (every iteration if > 1); the fit is the
+        same either way.
     random_state : int, RandomState instance or None, default=None
         Seeds the initial inner weights of a ridge basis.
 
@@ -295,7 +294,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         "refit": ["boolean"],
         "l1_smoothing": [Interval(Real, 0, None, closed="neither")],
         "shooting_weight": [Interval(Real, 0, None, closed="left")],
-        "solver": [StrOptions({"auto", "lm", "optax"})],
+        "solver": [StrOptions({"auto", "lm", "optax"}), LevenbergMarquardt, Optax],
         "lm_scaling": [StrOptions(set(LM_SCALINGS))],
         "optimizer": "no_validation",
         "max_iter": [Interval(Integral, 1, None, closed="left")],
@@ -321,7 +320,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         refit: bool = True,
         l1_smoothing: float = 100.0,
         shooting_weight: float = 10.0,
-        solver: str = "auto",
+        solver: str | LevenbergMarquardt | Optax = "auto",
         lm_scaling: str = "per-variable",
         optimizer=None,
         max_iter: int = 200,

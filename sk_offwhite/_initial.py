@@ -13,9 +13,9 @@ $$
 C(x_0) = \frac{1}{N n_z} \sum_{k<N} \big\|(\hat z_k(x_0) - z_k) / \sigma_o\big\|^2,
 $$
 
-with $\sigma_o$ the outputs' scale; the steps are those of
-`lm_loop` (Marquardt's per-variable scaling, the same damping
-updates and stopping rules).
+with $\sigma_o$ the outputs' scale; the steps follow the rules of every Levenberg-Marquardt
+run of the package (`sk_offwhite.solvers._rules`: Marquardt's per-variable scaling, the same
+damping updates and stopping rules).
 """
 
 from __future__ import annotations
@@ -28,16 +28,15 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._backend import to_device
-from ._optim import (
-    DAMPING_DOWN,
-    DAMPING_UP,
-    MAX_DAMPING,
-    ROUNDING_COST,
-    START_DAMPING,
-    damped_diagonal,
-)
 from ._rollout import simulate
 from ._sparsity import output_scale
+from .solvers._rules import (
+    START_DAMPING,
+    damped_diagonal,
+    next_damping,
+    small_decrease,
+    stop_code,
+)
 
 __all__ = ["estimate_initial_state"]
 
@@ -100,11 +99,9 @@ def _solve_window(model, params: dict, x0, u, z, scale, free, max_iter, tol):
         move = jnp.where(first, 0.0, _damped_step(it, free))
         residual, jacobian, cost = linearise(it.x0 + move)
         accepted = first | (jnp.isfinite(cost) & (cost < it.cost))
-        small = (it.cost - cost <= tol * jnp.maximum(it.cost, 1e-300)) & (it.damping < 1.0)
-        small = small & ~first
-        lowered = jnp.where(small | first, it.damping, it.damping / DAMPING_DOWN)
-        damping = jnp.where(accepted, lowered, DAMPING_UP * it.damping)
-        done = jnp.where(accepted, small | (cost <= ROUNDING_COST), damping > MAX_DAMPING)
+        small = small_decrease(it.cost, cost, tol)
+        done = stop_code(~first, accepted, small, it.damping, cost) > 0
+        damping = next_damping(~first, accepted, it.damping)
         scale = jnp.maximum(it.scale, jnp.sum(jacobian**2, axis=0))
         count = it.iteration + jnp.where(first, 0, 1)
         kept = _Iterate(it.x0 + move, residual, jacobian, cost, damping, scale, count, done, True)

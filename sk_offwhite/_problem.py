@@ -14,8 +14,16 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._backend import to_device
-from ._effects import Switched
-from ._hidden import (
+from ._layout import Layout
+from ._objective import CostWeights
+from ._physics import PhysicsModel, measured_states
+from ._rollout import Model, free_run_record, theta_dict
+from ._segments import Segments, make_segments
+from ._sparsity import SparseOptions, fit_sparse, output_scale, state_scale
+from ._start import continuation_start, within_reach
+from ._verdict import judged, needs_restart, with_fit_term
+from .effects import Switched
+from .effects._hidden import (
     hidden_bounds,
     hidden_start,
     input_determined,
@@ -23,17 +31,9 @@ from ._hidden import (
     sensor_readings,
     with_input_determined,
 )
-from ._layout import Layout
-from ._lm_device import PAD_TO, levenberg_marquardt_on_device, padded_size
-from ._objective import CostWeights
-from ._optim import Problem, SolverResult, run_optax
-from ._physics import PhysicsModel, measured_states
-from ._rollout import Model, free_run_record, theta_dict
-from ._segments import Segments, make_segments
-from ._sparsity import SparseOptions, fit_sparse, output_scale, state_scale
-from ._start import continuation_start, within_reach
-from ._structured import structured_levenberg_marquardt
-from ._verdict import judged, needs_restart, with_fit_term
+from .solvers._core import Problem, SolverResult
+from .solvers._device import PAD_TO, padded_size
+from .solvers._solver import resolve_solver
 
 __all__ = [
     "FitOutcome",
@@ -41,16 +41,6 @@ __all__ = [
     "initial_blocks",
     "solve",
 ]
-
-LM_MAX_FREE = 400
-"""Without shooting windows, ``solver='auto'`` uses Levenberg-Marquardt up to this many
-free variables and the optax loop above."""
-
-STRUCTURED_MIN_FREE = 100
-"""With shooting windows, Levenberg-Marquardt over more free variables than this uses the
-coloured Jacobian of `_structured`. Measured on the tanks with horizon 32
-(2 states, 3 parameters): 2000 samples (255 free), 3.3 s dense against 1.7 s coloured,
-the same parameters to 5 digits; 6000 samples (379 free), 65 s against 2.7 s."""
 
 
 def build_model(
@@ -431,39 +421,14 @@ def _fit_once(settings: FitSettings, warm=None, sparse=None, reference=None) -> 
     )
 
 
-def solve(
-    model,
-    layout,
-    problem,
-    free0,
-    *,
-    solver,
-    optimizer,
-    max_iter,
-    tol,
-    verbose,
-    lm_scaling="per-variable",
-):
-    """Run the chosen solver.
-
-    ``'auto'`` picks Levenberg-Marquardt (forward-mode Jacobians) with multiple-shooting
-    windows or up to `LM_MAX_FREE` free variables, and the optax loop (reverse-mode
-    gradients) for larger problems without windows. With windows and more than
-    `STRUCTURED_MIN_FREE` free variables, Levenberg-Marquardt uses the coloured
-    Jacobian and sparse normal equations of `_structured`; otherwise
-    the whole run is one program (`_lm_device`; with ``verbose``, the
-    Python loop that prints each iteration).
-    ``lm_scaling`` is Levenberg-Marquardt's rule for $D$
-    (`damped_diagonal`).
-    """
-    n_free = free0.shape[0]
-    windows = bool(np.any(np.asarray(problem.segments.linked) > 0))
-    options = dict(max_iter=max_iter, tol=tol, verbose=verbose)
-    if solver == "lm" or (solver == "auto" and (windows or n_free <= LM_MAX_FREE)):
-        coloured = windows and n_free > STRUCTURED_MIN_FREE
-        method = structured_levenberg_marquardt if coloured else levenberg_marquardt_on_device
-        return method(free0, problem, model, layout, scaling=lm_scaling, **options)
-    return run_optax(free0, problem, model, layout, optimizer, **options)
+def solve(model, layout, problem, free0, *, solver, optimizer, max_iter, tol, verbose,
+          lm_scaling="per-variable"):  # fmt: skip
+    """Run ``solver`` (a solver object or the name of one: `resolve_solver`) from ``free0``."""
+    method = resolve_solver(
+        solver, lm_scaling=lm_scaling, optimizer=optimizer, problem=problem,
+        n_free=free0.shape[0],
+    )  # fmt: skip
+    return method.run(free0, problem, model, layout, max_iter=max_iter, tol=tol, verbose=verbose)
 
 
 def fitted_blocks(layout, problem, result: SolverResult) -> dict:

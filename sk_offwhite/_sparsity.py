@@ -47,7 +47,7 @@ import numpy as np
 
 from ._backend import to_device
 from ._objective import n_fit_residuals
-from ._optim import Problem, SolverResult, fit_cost, jacobian_columns
+from .solvers._core import Problem, SolverResult, fit_cost, jacobian_columns
 
 __all__ = [
     "Reference",

@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from ._objective import n_fit_residuals
-from ._optim import SolverResult, fit_cost
+from .solvers._core import SolverResult, fit_cost
 
 __all__ = [
     "NO_MODEL_FIT",

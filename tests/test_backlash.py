@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 
 from sk_offwhite import Backlash, GreyBoxSparseRegressor, Parameter, augment, switched
-from sk_offwhite._hidden import hidden_bounds, hidden_start
 from sk_offwhite._kinds import Kinds
 from sk_offwhite._problem import initial_state_guess
 from sk_offwhite.datasets import make_backlash_servo, play
 from sk_offwhite.datasets._backlash import SERVO_THETA, SERVO_WIDTH
+from sk_offwhite.effects._hidden import hidden_bounds, hidden_start
 from sk_offwhite.loop import LoopSettings, _loop, close_the_loop, score_models, write_report
 from sk_offwhite.loop._candidates import propose_effects
 from sk_offwhite.loop._hypotheses import Hypothesis, Term

@@ -70,8 +70,8 @@ def test_release_drops_the_compiled_programs_of_a_fit():
     import numpy as np
 
     from sk_offwhite import GreyBoxSparseRegressor, release_compiled_programs
-    from sk_offwhite._lm_device import _run_on_device
     from sk_offwhite.datasets import make_leaky_tank
+    from sk_offwhite.solvers._device import _run_on_device
 
     tank = make_leaky_tank(n_samples=100, random_state=0)
     est = GreyBoxSparseRegressor(tank.physics, max_iter=5).fit(tank.u, tank.z)
@@ -87,8 +87,8 @@ def test_releasing_the_package_programs_keeps_the_applications_own():
     import jax.numpy as jnp
 
     from sk_offwhite import GreyBoxSparseRegressor, release_package_programs
-    from sk_offwhite._lm_device import _run_on_device
     from sk_offwhite.datasets import make_leaky_tank
+    from sk_offwhite.solvers._device import _run_on_device
 
     data = make_leaky_tank(n_samples=100, random_state=0)
     GreyBoxSparseRegressor(data.physics, max_iter=5).fit(data.u, data.z)
@@ -104,8 +104,8 @@ def test_a_fit_with_a_dictionary_runs_all_its_stages_on_one_program():
     import pysindy as ps
 
     from sk_offwhite import GreyBoxSparseRegressor, release_package_programs
-    from sk_offwhite._lm_device import _run_on_device
     from sk_offwhite.datasets import make_leaky_tank
+    from sk_offwhite.solvers._device import _run_on_device
 
     data = make_leaky_tank(n_samples=100, random_state=0)
     release_package_programs()

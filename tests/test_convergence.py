@@ -9,7 +9,6 @@ import pytest
 from sklearn.exceptions import ConvergenceWarning
 
 from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel, RunawayParameterWarning
-from sk_offwhite._optim import SolverResult
 from sk_offwhite._verdict import (
     NO_MODEL_FIT,
     RUNAWAY_FACTOR,
@@ -17,6 +16,7 @@ from sk_offwhite._verdict import (
     needs_restart,
     runaway_parameters,
 )
+from sk_offwhite.solvers._core import SolverResult
 
 TRUE_POLE = -0.2
 
@@ -120,7 +120,7 @@ def test_a_run_creeping_along_a_flat_direction_says_so():
 
 
 def test_creep_is_told_from_progress():
-    from sk_offwhite._optim import _creep
+    from sk_offwhite.solvers._rules import creep_note as _creep
 
     assert _creep(list(np.linspace(2.0, 1.0, 30))) == ""  # still descending
     assert _creep([1.0] * 10) == ""  # too short to tell

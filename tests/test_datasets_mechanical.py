@@ -10,7 +10,6 @@ import numpy as np
 import pysindy as ps
 import pytest
 
-from sk_offwhite._effects import signed_power
 from sk_offwhite.datasets import (
     make_clearance_coupling,
     make_convective_block,
@@ -21,6 +20,7 @@ from sk_offwhite.datasets import (
     make_heated_block,
     make_pendulum_drag,
 )
+from sk_offwhite.effects._terms import signed_power
 
 GENERATORS = {
     "drive": make_coulomb_drive,

@@ -10,7 +10,10 @@ import pytest
 from conftest import tanks_physics
 
 from sk_offwhite import GreyBoxSparseRegressor
-from sk_offwhite._effects import (
+from sk_offwhite._problem import build_model
+from sk_offwhite._rollout import free_run
+from sk_offwhite.datasets import cascaded_tanks_physics, make_cascaded_tanks, make_coulomb_drive
+from sk_offwhite.effects import (
     AdditiveEffect,
     Backlash,
     Bias,
@@ -25,15 +28,13 @@ from sk_offwhite._effects import (
     RelaxedLaw,
     augment,
     switched,
-    switches,
 )
-from sk_offwhite._lm_device import _run_on_device
-from sk_offwhite._problem import build_model
-from sk_offwhite._rollout import free_run
-from sk_offwhite.datasets import cascaded_tanks_physics, make_cascaded_tanks, make_coulomb_drive
+from sk_offwhite.effects._switched import switches
 from sk_offwhite.loop import LoopSettings
 from sk_offwhite.loop._loop import _quick_fit, _rank_alone
 from sk_offwhite.loop._switchboard import SeparateModels, Switchboard, single_effect_models
+from sk_offwhite.loop._variants import mechanism
+from sk_offwhite.solvers._device import _run_on_device
 
 
 def _theta(physics):
@@ -153,7 +154,7 @@ def test_a_threshold_on_the_difference_passes_only_its_excess(scale):
     np.testing.assert_allclose(seen[False], np.sign(drives) * beyond, atol=1e-3 * width)
     diode = DifferenceDeadZone(0, 0, 1.0, one_sided=True, name="a")
     clearance = DifferenceDeadZone(0, 0, 1.0, name="b")
-    assert diode.mechanism == clearance.mechanism  # one mechanism: a set holds one shape
+    assert mechanism(diode) == mechanism(clearance)  # one mechanism: a set holds one shape
     with pytest.raises(ValueError, match="width must be positive"):
         DifferenceDeadZone(0, 0, 0.0)
 
@@ -181,7 +182,7 @@ def test_a_hard_input_limit_passes_the_input_below_it_and_clips_above(scale):
 
 def test_the_two_saturation_shapes_are_one_mechanism_and_differ_as_effects():
     soft, hard = InputSaturation(0, 1.0), InputSaturation(0, 1.0, shape="clip")
-    assert soft.mechanism == hard.mechanism != InputSaturation(1, 1.0).mechanism
+    assert mechanism(soft) == mechanism(hard) != mechanism(InputSaturation(1, 1.0))
     assert soft != hard and pickle.loads(pickle.dumps(hard)) == hard
     assert "clipped" in hard.describe(["x"], ["z"]) and "tanh" in soft.describe(["x"], ["z"])
     with pytest.raises(ValueError, match="shape must be one of"):

@@ -16,7 +16,6 @@ from sklearn.exceptions import ConvergenceWarning
 
 from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel
 from sk_offwhite._layout import Layout
-from sk_offwhite._optim import _optax_iteration, default_optimizer, free_residuals
 from sk_offwhite._problem import (
     bound_blocks,
     free_blocks,
@@ -24,6 +23,8 @@ from sk_offwhite._problem import (
     make_problem,
 )
 from sk_offwhite._segments import make_segments
+from sk_offwhite.solvers._core import free_residuals
+from sk_offwhite.solvers._optax import _optax_iteration, default_optimizer
 
 
 def _relative_errors(est):

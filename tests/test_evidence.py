@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from sk_offwhite import Bias, DictionaryTerm, Friction, PhysicsModel, augment
-from sk_offwhite._effects import time_step
 from sk_offwhite._kinds import physical_kinds
 from sk_offwhite._sparsity import matching_pursuit, term_evidence
 from sk_offwhite.datasets import cascaded_tanks_physics, make_friction_oscillator
+from sk_offwhite.effects._augment import time_step
 
 
 def test_a_term_the_physics_can_absorb_carries_no_evidence():

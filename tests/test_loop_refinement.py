@@ -38,27 +38,28 @@ from sk_offwhite.loop._loop import (
     _with_richer,
 )
 from sk_offwhite.loop._switchboard import effect_sets
+from sk_offwhite.loop._variants import mechanism, richer, richer_start
 
 CALIBRATION = SensorCalibration(0, center=4.0, scale=2.0, name="sensor_x")
 
 
 def test_the_richer_calibration_has_one_degree_more_and_the_same_mechanism():
-    richer = CALIBRATION.richer()
-    assert (richer.degree, richer.name) == (3, "sensor_x_degree3")
-    assert (richer.center, richer.scale, richer.output) == (4.0, 2.0, 0)
-    assert richer.mechanism == CALIBRATION.mechanism
-    assert richer.richer().name == "sensor_x_degree4"
-    assert Leak(0).richer() is None
+    variant = richer(CALIBRATION)
+    assert (variant.degree, variant.name) == (3, "sensor_x_degree3")
+    assert (variant.center, variant.scale, variant.output) == (4.0, 2.0, 0)
+    assert mechanism(variant) == mechanism(CALIBRATION)
+    assert richer(variant).name == "sensor_x_degree4"
+    assert richer(Leak(0)) is None
 
 
 def test_the_richer_calibration_starts_where_it_reads_as_the_fitted_one():
     values = {"sensor_x_c0": 0.3, "sensor_x_c1": -0.2, "sensor_x_c2": 0.05}
-    start = CALIBRATION.richer_start(values)
+    start = richer_start(CALIBRATION, values)
     assert start["sensor_x_degree3_c3"].value == 0.0
     theta = {k: getattr(v, "value", v) for k, v in start.items()}
     z = jnp.array([7.5])
-    richer = CALIBRATION.richer().apply_output(None, None, z, theta)
-    assert float(richer[0]) == pytest.approx(
+    variant = richer(CALIBRATION).apply_output(None, None, z, theta)
+    assert float(variant[0]) == pytest.approx(
         float(CALIBRATION.apply_output(None, None, z, values)[0])
     )
 
@@ -77,10 +78,10 @@ def test_refinements_exchange_each_effect_that_has_a_richer_variant():
     moves = list(_refinements((leak, CALIBRATION), warm, 0.5, board))
     assert len(moves) == 1
     effects, starts, bar = moves[0]
-    assert effects == (leak, CALIBRATION.richer()) and bar == 0.5
+    assert effects == (leak, richer(CALIBRATION)) and bar == 0.5
     assert starts[0]["k"] == 2.0 and starts[0]["sensor_x_degree3_c1"] == 1.0
     assert not any(name.startswith("sensor_x_c") for name in starts[0])
-    assert _with_richer([leak, CALIBRATION]) == [leak, CALIBRATION, CALIBRATION.richer()]
+    assert _with_richer([leak, CALIBRATION]) == [leak, CALIBRATION, richer(CALIBRATION)]
     without = effect_sets(physics, [leak, CALIBRATION], shared=False)
     assert list(_refinements((leak, CALIBRATION), warm, 0.5, without)) == []
 
@@ -129,15 +130,15 @@ def _drag_term(effect, v, theta):
 
 
 def test_the_richer_drag_has_a_fitted_exponent_on_the_same_reference_and_mechanism():
-    richer = DRAG.richer()
-    assert isinstance(richer, PowerDrag) and richer.name == "drag_omega_power"
-    assert (richer.state, richer.reference, richer.mechanism) == (1, 2.0, DRAG.mechanism)
-    assert richer.richer() is None and richer.richer_start({}) == {}
-    start = DRAG.richer_start({"drag_omega_coefficient": 0.7})
+    variant = richer(DRAG)
+    assert isinstance(variant, PowerDrag) and variant.name == "drag_omega_power"
+    assert (variant.state, variant.reference, mechanism(variant)) == (1, 2.0, mechanism(DRAG))
+    assert richer(variant) is None and richer_start(variant, {}) == {}
+    start = richer_start(DRAG, {"drag_omega_coefficient": 0.7})
     assert start["drag_omega_power_exponent"].value == 2.0
     theta = {k: getattr(v, "value", v) for k, v in start.items()}
     for v in (-3.0, -0.2, 0.0, 0.5, 4.0):  # the quadratic drag itself
-        assert _drag_term(richer, v, theta) == pytest.approx(
+        assert _drag_term(variant, v, theta) == pytest.approx(
             _drag_term(DRAG, v, {"drag_omega_coefficient": 0.7})
         )
 
@@ -193,16 +194,16 @@ def _spring_term(effect, q, theta):
 
 
 def test_the_richer_spring_has_a_fitted_exponent_started_at_its_power():
-    richer = SPRING.richer()
-    assert isinstance(richer, PowerStiffness) and richer.name == "stiffness_y_power"
-    assert (richer.state, richer.position, richer.power) == (1, 0, 3)
-    assert (richer.reference, richer.mechanism) == (0.5, SPRING.mechanism)
-    assert richer.richer() is None and richer.richer_start({}) == {}
-    start = SPRING.richer_start({"stiffness_y_coefficient": -0.4})
+    variant = richer(SPRING)
+    assert isinstance(variant, PowerStiffness) and variant.name == "stiffness_y_power"
+    assert (variant.state, variant.position, variant.power) == (1, 0, 3)
+    assert (variant.reference, mechanism(variant)) == (0.5, mechanism(SPRING))
+    assert richer(variant) is None and richer_start(variant, {}) == {}
+    start = richer_start(SPRING, {"stiffness_y_coefficient": -0.4})
     assert start["stiffness_y_power_exponent"].value == 3.0
     theta = {k: getattr(v, "value", v) for k, v in start.items()}
     for q in (-1.5, -0.1, 0.0, 0.3, 2.0):  # the cubic spring itself
-        assert _spring_term(richer, q, theta) == pytest.approx(
+        assert _spring_term(variant, q, theta) == pytest.approx(
             _spring_term(SPRING, q, {"stiffness_y_coefficient": -0.4})
         )
 
@@ -272,7 +273,7 @@ def test_the_refinement_frees_the_exponent_of_a_spring_that_is_not_cubic_in_any_
     to rounding, the coefficient converted by 1000^(1 - 3), the CV errors by 1000."""
     data = make_duffing_oscillator(n_samples=1000, random_state=0, exponent=2.5)
     kept, cv, rows, fitted = _refined_spring(data, millimetres=False)
-    assert kept == (Stiffness(1, 0, reference=kept[0].reference, name="stiffness_y").richer(),)
+    assert kept == (richer(Stiffness(1, 0, reference=kept[0].reference, name="stiffness_y")),)
     assert list(rows) == ["stiffness_y_power"] and rows["stiffness_y_power"] < 0.7 * cv
     assert fitted["stiffness_y_power_exponent"] == pytest.approx(2.5, abs=0.05)
     kept_mm, cv_mm, rows_mm, fitted_mm = _refined_spring(data, millimetres=True)
@@ -293,26 +294,30 @@ def _friction_term(effect, v, theta):
 
 
 def test_the_richer_friction_adds_a_stribeck_level_and_velocity_both_fitted():
-    richer = COULOMB.richer()
-    assert richer.name == "friction_v_stribeck" and richer.mechanism == COULOMB.mechanism
-    assert richer.stribeck_velocity == pytest.approx(Friction.STRIBECK_START * 0.02)
-    assert richer.min_width == COULOMB.min_width and richer.richer() is None
-    params = richer.parameters()
+    variant = richer(COULOMB)
+    assert variant.name == "friction_v_stribeck" and mechanism(variant) == mechanism(COULOMB)
+    assert variant.stribeck_velocity == pytest.approx(Friction.STRIBECK_START * 0.02)
+    assert variant.min_width == COULOMB.min_width and richer(variant) is None
+    params = variant.parameters()
     assert params["friction_v_stribeck_stribeck"].value == 0.0
     assert params["friction_v_stribeck_stribeck_velocity"].bounds == (COULOMB.min_width, None)
     fitted = {"friction_v_coulomb": Parameter(0.35, (0.0, None)),
               "friction_v_width": Parameter(0.03, (2e-4, None))}  # fmt: skip
-    start = COULOMB.richer_start({**COULOMB.parameters(), **fitted})
+    start = richer_start(COULOMB, {**COULOMB.parameters(), **fitted})
     assert start["friction_v_stribeck_width"] == fitted["friction_v_width"]
     theta = {k: p.value for k, p in start.items()}
     values = {k: p.value for k, p in fitted.items()}
     for v in (-2.0, -0.01, 0.0, 0.05, 1.5):  # the Coulomb friction itself
-        assert _friction_term(richer, v, theta) == pytest.approx(_friction_term(COULOMB, v, values))
+        assert _friction_term(variant, v, theta) == pytest.approx(
+            _friction_term(COULOMB, v, values)
+        )
     stribeck = {**theta, "friction_v_stribeck_stribeck": 0.5}
-    near_rest = _friction_term(richer, 0.5, stribeck) - _friction_term(richer, 0.5, theta)
+    near_rest = _friction_term(variant, 0.5, stribeck) - _friction_term(variant, 0.5, theta)
     assert near_rest == pytest.approx(-0.5 * np.exp(-((0.5 / 1.0) ** 2)) * np.tanh(0.5 / 0.03))
     sharp = {**fitted, "friction_v_width": Parameter(3e-4, (2e-4, None))}  # below its start
-    restarted = COULOMB.richer_start({**COULOMB.parameters(), **sharp})["friction_v_stribeck_width"]
+    restarted = richer_start(COULOMB, {**COULOMB.parameters(), **sharp})[
+        "friction_v_stribeck_width"
+    ]
     assert restarted.value == 0.02 and restarted.bounds == (2e-4, None)
     with pytest.raises(ValueError, match="stribeck_velocity"):
         Friction(1, width=0.02, stribeck_velocity=1e-5)

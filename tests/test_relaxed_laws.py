@@ -5,8 +5,9 @@ import numpy as np
 import pytest
 
 from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel, RelaxedLaw, augment
-from sk_offwhite._effects import Overflow, relaxations
 from sk_offwhite.datasets import cascaded_tanks_physics
+from sk_offwhite.effects import Overflow
+from sk_offwhite.effects._laws import relaxations
 from sk_offwhite.loop._switchboard import Switchboard
 
 TRUE_EXPONENT = 0.3

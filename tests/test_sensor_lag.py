@@ -25,13 +25,14 @@ from sk_offwhite import (
 )
 from sk_offwhite._physics import Parameter, PhysicsModel
 from sk_offwhite._problem import initial_state_guess
-from sk_offwhite._sensor_lag import sensor_lag_law
 from sk_offwhite.datasets import lagged_reading, make_slow_sensor_tank
 from sk_offwhite.datasets._sensor import SENSOR_LAG, SENSOR_THETA, _sensor_tank_physics
 from sk_offwhite.datasets._synthetic import POSITIVE, tank_rhs
 from sk_offwhite.diagnose import lagging_outputs
+from sk_offwhite.effects._lags import sensor_lag_law
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 from sk_offwhite.loop._candidates import propose_effects
+from sk_offwhite.loop._variants import mechanism, richer
 
 
 @pytest.fixture(scope="module")
@@ -122,8 +123,8 @@ def test_the_augmented_model_compares_by_value_and_pickles(tank):
     assert hash(model.output) == hash(again.output)
     restored = pickle.loads(pickle.dumps(model))
     assert restored.output == model.output and restored.step == model.step
-    assert effect.mechanism == "dynamics of the sensor of output 0"
-    assert effect.richer() is None
+    assert mechanism(effect) == "dynamics of the sensor of output 0"
+    assert richer(effect) is None
 
 
 def test_the_generator_reads_the_level_through_the_lag():

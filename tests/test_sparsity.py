@@ -16,7 +16,6 @@ from sklearn.base import clone
 from sklearn.model_selection import KFold, cross_val_score
 
 from sk_offwhite import GreyBoxSparseRegressor, Parameter, PhysicsModel, fit_gamma_path, gamma_grid
-from sk_offwhite._optim import SolverResult
 from sk_offwhite._path import (
     _better_start,
     _choose,
@@ -27,6 +26,7 @@ from sk_offwhite._path import (
 )
 from sk_offwhite._sparsity import _no_worse_than, _Stage
 from sk_offwhite.loop import held_out_rmse
+from sk_offwhite.solvers._core import SolverResult
 
 TRUE = {"a": 0.8, "b": 0.5, "c": -0.15}
 N_SAMPLES = 300

@@ -11,31 +11,27 @@ from conftest import solver_problem, tanks_physics
 from sklearn.exceptions import ConvergenceWarning
 
 from sk_offwhite import GreyBoxSparseRegressor
-from sk_offwhite import _optim as optim
 from sk_offwhite._objective import residual_parts
-from sk_offwhite._optim import (
-    LINEARIZE_MAX_FREE,
-    _anchored,
-    _lm_advance,
-    _omega,
-    _origin,
-    first_state,
-    forward_mode,
-    free_residuals,
-    jacobian_columns,
-    levenberg_marquardt,
-    linearised,
-    majorised_cost,
-    n_residuals,
-)
 from sk_offwhite._sparsity import block_columns
-from sk_offwhite._structured import (
+from sk_offwhite.datasets import make_cascaded_tanks
+from sk_offwhite.solvers import _core as core
+from sk_offwhite.solvers._coloured import (
     _compressed,
     _linearise,
     colouring,
     structured_levenberg_marquardt,
 )
-from sk_offwhite.datasets import make_cascaded_tanks
+from sk_offwhite.solvers._core import (
+    LINEARIZE_MAX_FREE,
+    _omega,
+    forward_mode,
+    free_residuals,
+    jacobian_columns,
+    linearised,
+    n_residuals,
+)
+from sk_offwhite.solvers._dense import _anchored, _lm_advance, _origin, first_state, majorised_cost
+from sk_offwhite.solvers._device import levenberg_marquardt_on_device as levenberg_marquardt
 
 
 @pytest.fixture(autouse=True)
@@ -115,9 +111,9 @@ def test_reverse_and_forward_jacobians_agree(tanks_data):
 
 def test_the_linearisation_is_used_only_for_few_columns_and_loops_not_fused(monkeypatch):
     for fused in (False, True):
-        monkeypatch.setattr(optim, "fused_loops", lambda fused=fused: fused)
-        assert optim._through_linearisation(LINEARIZE_MAX_FREE) is not fused
-        assert not optim._through_linearisation(LINEARIZE_MAX_FREE + 1)
+        monkeypatch.setattr(core, "fused_loops", lambda fused=fused: fused)
+        assert core._through_linearisation(LINEARIZE_MAX_FREE) is not fused
+        assert not core._through_linearisation(LINEARIZE_MAX_FREE + 1)
 
 
 def test_the_linearisation_and_jacfwd_give_the_same_jacobian(monkeypatch):
@@ -131,7 +127,7 @@ def test_the_linearisation_and_jacfwd_give_the_same_jacobian(monkeypatch):
     jacobians = []
     with jax.enable_x64(True):
         for fused in (False, True):  # through jax.linearize, then through jacfwd
-            monkeypatch.setattr(optim, "fused_loops", lambda fused=fused: fused)
+            monkeypatch.setattr(core, "fused_loops", lambda fused=fused: fused)
             _, jacobian = linearised(simulated, jnp.linspace(0.1, 0.5, 5))
             jacobians.append(np.asarray(jacobian))
     assert jacobians[0].shape == (20, 5) and np.abs(jacobians[0]).max() > 0.1

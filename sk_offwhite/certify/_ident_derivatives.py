@@ -26,8 +26,8 @@ import jax.numpy as jnp
 
 from .._layout import Layout
 from .._objective import residuals, rollout_segments
-from .._optim import Problem, linearised
 from .._rollout import Model, model_output, model_step, theta_dict
+from ..solvers._core import Problem, linearised
 
 __all__ = ["Perturbation", "cost_hessian", "mixed_derivatives", "output_jacobian"]
 

@@ -26,10 +26,10 @@ from .._equations import correction_rows
 from .._estimator import GreyBoxSparseRegressor, records_digest
 from .._layout import Layout
 from .._objective import CostWeights
-from .._optim import Problem
 from .._problem import make_problem
 from .._rollout import Model
 from .._segments import make_segments
+from ..solvers._core import Problem
 
 __all__ = ["LocalProblem", "check_fitted", "local_problem"]
 

@@ -6,7 +6,6 @@ physics misses one effect (the ``hidden_effect`` of the returned Bunch), for che
 sparse black-box correction finds what the physics is missing.
 """
 
-from sk_offwhite._delay import delayed_command
 from sk_offwhite.datasets._backlash import make_backlash_servo, play
 from sk_offwhite.datasets._cascaded_tanks import (
     cascaded_tanks_physics,
@@ -46,6 +45,7 @@ from sk_offwhite.datasets._synthetic import (
 )
 from sk_offwhite.datasets._thermal import make_convective_block, make_heated_block
 from sk_offwhite.datasets._vehicle import vehicle_physics_known_registers
+from sk_offwhite.effects._lags import delayed_command
 
 __all__ = [
     "cascaded_tanks_physics",

@@ -10,8 +10,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 from sklearn.utils import Bunch, check_random_state
 
-from sk_offwhite._delay import delayed_command
-from sk_offwhite._effects import checked_positive, lag_coefficients
 from sk_offwhite.datasets._common import (
     _bunch,
     _check_n_samples,
@@ -30,6 +28,8 @@ from sk_offwhite.datasets._thermal import (
     HEATER_THETA,
     _heated_block_physics,
 )
+from sk_offwhite.effects._base import checked_positive
+from sk_offwhite.effects._lags import delayed_command, lag_coefficients
 
 __all__ = [
     "lagged_command",

@@ -9,9 +9,7 @@ from functools import partial
 import numpy as np
 from sklearn.utils import Bunch, check_random_state
 
-from sk_offwhite._effects import checked_positive
 from sk_offwhite._physics import Parameter, PhysicsModel
-from sk_offwhite._sensor_lag import sensor_lag_law
 from sk_offwhite.datasets._common import (
     _bunch,
     _check_n_samples,
@@ -22,6 +20,8 @@ from sk_offwhite.datasets._common import (
     _rollout,
 )
 from sk_offwhite.datasets._synthetic import POSITIVE, tank_rhs
+from sk_offwhite.effects._base import checked_positive
+from sk_offwhite.effects._lags import sensor_lag_law
 
 SENSOR_THETA = {"k": 0.5, "b": 0.5}
 SENSOR_CURVATURE, SENSOR_DT, SENSOR_X0 = 0.04, 1.0, 4.0

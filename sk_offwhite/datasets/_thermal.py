@@ -14,11 +14,11 @@ import dataclasses
 import numpy as np
 from sklearn.utils import Bunch
 
-from sk_offwhite._effects import signed_power
 from sk_offwhite._physics import Parameter, PhysicsModel
 from sk_offwhite.datasets._common import _SimpleSystem
 from sk_offwhite.datasets._mechanical import _generate, _Generator
 from sk_offwhite.datasets._synthetic import _first_order_physics
+from sk_offwhite.effects._terms import signed_power
 
 __all__ = ["make_convective_block", "make_heated_block"]
 

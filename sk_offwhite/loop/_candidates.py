@@ -46,8 +46,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._delay import InputDelay
-from .._effects import (
+from .._kinds import ACTUATOR_KINDS, LEVEL_KINDS, POSITION_KINDS, VELOCITY_KINDS, Kinds
+from ..effects import (
     Backlash,
     Bias,
     DeadZone,
@@ -55,6 +55,7 @@ from .._effects import (
     DifferenceDeadZone,
     Effect,
     Friction,
+    InputDelay,
     InputLag,
     InputSaturation,
     Leak,
@@ -64,11 +65,10 @@ from .._effects import (
     PowerLoss,
     QuadraticDrag,
     SensorCalibration,
+    SensorLag,
     SensorStep,
     Stiffness,
 )
-from .._kinds import ACTUATOR_KINDS, LEVEL_KINDS, POSITION_KINDS, VELOCITY_KINDS, Kinds
-from .._sensor_lag import SensorLag
 from ._hypotheses import Hypothesis
 
 __all__ = ["Candidate", "promoted_terms", "propose_effects", "unique_by_name"]

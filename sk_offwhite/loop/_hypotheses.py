@@ -30,8 +30,8 @@ from dataclasses import dataclass, field, replace
 import jax
 import numpy as np
 
-from .._hidden import n_declared_states
 from ..diagnose import residual_regions
+from ..effects._hidden import n_declared_states
 
 __all__ = ["Hypothesis", "Term", "evidence_hypotheses", "form_hypotheses", "rank_terms"]
 

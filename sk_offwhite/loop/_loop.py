@@ -57,12 +57,9 @@ from sklearn.base import clone
 from sklearn.model_selection import KFold
 
 from .._cache import release_package_programs
-from .._effects import DictionaryTerm, augment, relaxations, time_step
 from .._equations import output_name
 from .._estimator import GreyBoxSparseRegressor, RunawayParameterWarning
-from .._hidden import n_declared_states
 from .._kinds import Kinds, physical_kinds
-from .._optim import LM_SCALINGS
 from .._parallel import gather, launch, start_workers
 from .._path import GammaPath, fit_gamma_path
 from .._physics import Parameter, measured_states
@@ -78,12 +75,18 @@ from ..diagnose import (
     output_jumps,
     range_violations,
 )
+from ..effects import DictionaryTerm, augment
+from ..effects._augment import time_step
+from ..effects._hidden import n_declared_states
+from ..effects._laws import relaxations
+from ..solvers._rules import LM_SCALINGS
 from ._candidates import Candidate, promoted_terms, propose_effects, unique_by_name
 from ._gauge import fit_undetermined_directions, held_note, held_parameters, holding
 from ._hypotheses import evidence_hypotheses, form_hypotheses
 from ._progress import StageClock, logger
 from ._scoring import MODEL_LABELS, held_out_rmse
 from ._switchboard import Switchboard, effect_sets, single_effect_models
+from ._variants import mechanism, richer, richer_start
 
 __all__ = [
     "LoopResult",
@@ -673,8 +676,8 @@ def _forward(board, ranked, u, z, settings, base_rmse, failures):
         if steps:
             current, current_rmse = list(steps[0][0]), steps[0][2]
     while len(current) < settings.max_effects:
-        taken = {effect.mechanism for effect in current}
-        added = [(effect, params) for effect, params, _ in pool if effect.mechanism not in taken]
+        taken = {mechanism(effect) for effect in current}
+        added = [(effect, params) for effect, params, _ in pool if mechanism(effect) not in taken]
         calls = [
             ("effects " + _label((*current, effect)), _quick_fit, board, (*current, effect),
              {**steps[-1][1], **_own(params, effect)}, u, z, settings)
@@ -698,13 +701,13 @@ def _forward(board, ranked, u, z, settings, base_rmse, failures):
 
 def _representatives(ranked, tolerance: float) -> list:
     """``ranked`` (``(RMSE, candidate, parameters)``, best first) with one variant per
-    mechanism ([`mechanism`][sk_offwhite.Effect.mechanism]), in the place of the mechanism's
+    mechanism (`mechanism`), in the place of the mechanism's
     best: the variant with the fewest parameters among those within ``tolerance`` of that
     best (an overflow whose excess leaves the system rather than one with a fitted
     fraction, unless the fraction is worth it)."""
     groups: dict[str, list] = {}
     for item in ranked:
-        groups.setdefault(item[1].effect.mechanism, []).append(item)
+        groups.setdefault(mechanism(item[1].effect), []).append(item)
     return [min(_within(group, tolerance), key=_n_parameters) for group in groups.values()]
 
 
@@ -751,7 +754,7 @@ def _nested(ranked, base_rmse, settings):
 
 def _capped(candidates: list, limit: int | None) -> list:
     """The candidates of the first ``limit`` mechanisms
-    ([`mechanism`][sk_offwhite.Effect.mechanism]) in the order proposed, every variant of those
+    (`mechanism`) in the order proposed, every variant of those
     mechanisms included: a cap counts what is tried, not how many shapes of it are (a saturation's
     two, an overflow's destinations), so proposing one more variant does not push another effect
     out."""
@@ -759,10 +762,10 @@ def _capped(candidates: list, limit: int | None) -> list:
         return list(candidates)
     kept, mechanisms = [], []
     for candidate in candidates:
-        mechanism = candidate.effect.mechanism
-        if mechanism not in mechanisms and len(mechanisms) < limit:
-            mechanisms.append(mechanism)
-        if mechanism in mechanisms:
+        kind = mechanism(candidate.effect)
+        if kind not in mechanisms and len(mechanisms) < limit:
+            mechanisms.append(kind)
+        if kind in mechanisms:
             kept.append(candidate)
     return kept
 
@@ -847,9 +850,9 @@ def _select_effects(
 
 
 def _with_richer(effects) -> list:
-    """``effects`` with each one's richer variant ([`richer`][sk_offwhite.Effect.richer])
+    """``effects`` with each one's richer variant (`richer`)
     right after it: the sets the refinement may reach."""
-    pairs = ((effect, effect.richer()) for effect in effects)
+    pairs = ((effect, richer(effect)) for effect in effects)
     return [variant for pair in pairs for variant in pair if variant is not None]
 
 
@@ -996,14 +999,14 @@ def _additions_and_exchanges(effects, warm, ranked, rmse, lighter, settings):
         for _, c, p in _representatives(ranked, settings.tolerance)[: settings.beam]
         if c.effect not in effects and not isinstance(c.effect, DictionaryTerm)
     ]
-    taken = {e.mechanism for e in effects}
+    taken = {mechanism(e) for e in effects}
     for effect, params in pool:
-        if len(effects) < settings.max_effects and effect.mechanism not in taken:
+        if len(effects) < settings.max_effects and mechanism(effect) not in taken:
             gain = (1.0 - settings.min_gain) * rmse
             yield (*effects, effect), _starts(warm, effect, params), gain
         for out in effects:
             rest = tuple(e for e in effects if e != out)
-            if effect.mechanism in {e.mechanism for e in rest}:
+            if mechanism(effect) in {mechanism(e) for e in rest}:
                 continue
             kept = _without(warm, out)
             bar = max(rmse, lighter) if _size((effect,)) < _size((out,)) else rmse
@@ -1012,19 +1015,19 @@ def _additions_and_exchanges(effects, warm, ranked, rmse, lighter, settings):
 
 def _refinements(effects, warm, rmse, board):
     """``(effects, starts, RMSE to beat)`` with one effect exchanged for its richer
-    variant, started where it reproduces the effect ([`richer`][sk_offwhite.Effect.richer],
-    [`richer_start`][sk_offwhite.Effect.richer_start]): the variant nests the effect, so its fit
+    variant, started where it reproduces the effect (`richer`,
+    `richer_start`): the variant nests the effect, so its fit
     on the record can only match or lower ``rmse``, and the cross-validation decides
     whether the extra freedom is worth ``min_gain``. Only the variants on the ``board``
     (`_with_richer`: one step richer than each proposed effect)."""
     for effect in effects:
-        richer = effect.richer()
-        if richer is None or not board.ordered((richer,)):
+        variant = richer(effect)
+        if variant is None or not board.ordered((variant,)):
             continue
         rest = tuple(e for e in effects if e != effect)
         kept = _without(warm, effect)
-        start = effect.richer_start({**effect.parameters(), **warm})
-        yield (*rest, richer), [{**kept, **start}], rmse
+        start = richer_start(effect, {**effect.parameters(), **warm})
+        yield (*rest, variant), [{**kept, **start}], rmse
 
 
 def _delta_cv(est, path: GammaPath | None, u, z, settings) -> float:
@@ -1103,21 +1106,21 @@ def _declared_kinds(physics) -> tuple[int, Kinds]:
 def _promoted(physics, hypotheses, library, names, dt: float, settings) -> list:
     """The strongest dictionary terms as candidates
     ([`promoted_terms`][sk_offwhite.loop.promoted_terms]), none on a physics with hidden states (an
-    effect with memory, `sk_offwhite._hidden`): the dictionary reads the commands, where a term in
-    the declared step would read the input the effects deliver (a backlash's, a delay's), another
-    function."""
+    effect with memory, `sk_offwhite.effects._hidden`): the dictionary reads the commands, where a
+    term in the declared step would read the input the effects deliver (a backlash's, a delay's),
+    another function."""
     if physics.n_states > n_declared_states(physics):
         return []
     return promoted_terms(hypotheses, library, names, dt, settings.n_promoted)
 
 
 def _not_modelled(physics, candidates: list) -> list:
-    """``candidates`` without those whose mechanism ([`mechanism`][sk_offwhite.Effect.mechanism])
+    """``candidates`` without those whose mechanism (`mechanism`)
     an effect of ``physics`` already models: run on an augmented physics (its own result,
     say), the loop would otherwise propose an effect it holds, whose parameters clash with
     its own, or a second variant of one mechanism, which no effect set may hold."""
-    modelled = {effect.mechanism for effect in getattr(physics, "effects", ())}
-    return [c for c in candidates if c.effect.mechanism not in modelled]
+    modelled = {mechanism(effect) for effect in getattr(physics, "effects", ())}
+    return [c for c in candidates if mechanism(c.effect) not in modelled]
 
 
 def _read_evidence(physics, library, u, z, settings, failures):

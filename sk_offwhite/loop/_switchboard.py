@@ -48,8 +48,9 @@ from __future__ import annotations
 import dataclasses
 from typing import NamedTuple
 
-from .._effects import Switched, augment, switched, switches
 from .._physics import Parameter, PhysicsModel
+from ..effects import Switched, augment, switched
+from ..effects._switched import switches
 
 __all__ = ["SeparateModels", "Switchboard", "effect_sets", "single_effect_models"]
 

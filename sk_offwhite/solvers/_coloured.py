@@ -26,19 +26,11 @@ import numpy as np
 import scipy.sparse as sp
 from scipy.sparse.linalg import splu
 
-from ._objective import ResidualParts, residual_parts
-from ._optim import (
-    SolverResult,
-    _anchored,
-    _omega,
-    _penalised,
-    damped_diagonal,
-    free_residuals,
-    held_at_bound,
-    lm_loop,
-    majorised_cost,
-    pushed_forward,
-)
+from .._objective import ResidualParts, residual_parts
+from ._core import SolverResult, _omega, free_residuals, pushed_forward
+from ._dense import _anchored, _penalised, majorised_cost
+from ._host import lm_loop
+from ._rules import damped_diagonal, held_at_bound
 
 __all__ = ["Colouring", "colouring", "structured_levenberg_marquardt"]
 
@@ -235,7 +227,7 @@ def structured_levenberg_marquardt(
     free0, problem, model, layout, *, max_iter: int, tol: float, verbose: int = 0,
     scaling: str = "per-variable",
 ) -> SolverResult:  # fmt: skip
-    """Levenberg-Marquardt of `lm_loop` with the coloured
+    """Levenberg-Marquardt (`lm_loop`) with the coloured
     Jacobian and sparse normal equations (module docstring)."""
     parts = jax.eval_shape(
         lambda f: residual_parts(

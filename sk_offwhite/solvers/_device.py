@@ -1,26 +1,15 @@
 r"""Levenberg-Marquardt with its whole run on the device: one program, one dispatch.
 
-`lm_loop` drives the iterations from Python: each trial step is
-one call of the compiled iteration (`_lm_advance`), and its cost
-comes back to decide the next damping. On the short records of the closed loop and the
-support path, that call's dispatch and the transfer back cost about what the iteration
-computes. Here the same iterations run inside one ``lax.while_loop``: the same step, the
-same damping updates (divided by `DAMPING_DOWN` after an
-accepted step, multiplied by `DAMPING_UP` after a rejected one)
-and the same stopping rules, in double precision on the device, so the iterates are those
-of the host loop up to rounding. Its first pass evaluates the start (no step), so the
-iteration is traced once, in the loop, as `sk_offwhite._initial` does for the initial
-state.
+The iterations of the dense step (`sk_offwhite.solvers._dense`) run inside one
+``lax.while_loop`` under the rules of `sk_offwhite.solvers._rules`, in double precision; the
+first pass evaluates the start (no step), so the iteration is traced once, in the loop. A
+``verbose`` run prints its progress from inside the loop through a host callback, which
+leaves the iterations as they are.
 
 The free vector of a model with switched effects is padded with inert variables to a
-multiple of ``Model.free_multiple`` (`_padded`; its parameters other than the switches
-plus its states, rounded up to a multiple of `PAD_TO`): fits with different switch
-settings (the closed loop's candidates and effect sets on one switchboard) then share one
-program. The padding adds zero rows and columns to the normal equations, so the iterates
-are the same up to rounding.
-
-The host loop stays for ``verbose`` runs (it prints each iteration) and for the coloured
-Jacobian of `sk_offwhite._structured`, whose normal equations are sparse.
+multiple of ``Model.free_multiple`` (`_padded`): fits with different switch settings (the
+closed loop's candidates on one switchboard) then share one program. The padding adds zero
+rows and columns to the normal equations, so the iterates are the same up to rounding.
 """
 
 from __future__ import annotations
@@ -32,35 +21,23 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._layout import Layout
-from ._objective import n_fit_residuals
-from ._optim import (
-    DAMPING_DOWN,
-    DAMPING_UP,
-    MAX_DAMPING,
-    ROUNDING_COST,
+from .._layout import Layout
+from .._objective import n_fit_residuals
+from .._rollout import Model
+from ._core import Problem, SolverResult, forward_mode
+from ._dense import _lm_advance, _LMState, _origin
+from ._rules import (
+    OUTCOMES,
     START_DAMPING,
-    Problem,
-    SolverResult,
-    _creep,
-    _lm_advance,
-    _LMState,
-    _origin,
     checked_scaling,
-    forward_mode,
-    levenberg_marquardt,
+    creep_note,
+    next_damping,
+    progress_line,
+    small_decrease,
+    stop_code,
 )
-from ._rollout import Model
 
 __all__ = ["levenberg_marquardt_on_device"]
-
-OUTCOMES = (
-    "max_iter reached",
-    "relative cost decrease below tol",
-    "cost at rounding level (the data are reproduced)",
-    "no descent step left (stationary point)",
-)
-"""Why a run ended, by the code the device returns (0: it ran out of iterations)."""
 
 
 class _Run(NamedTuple):
@@ -95,21 +72,7 @@ def _start(free0, omega_shape, max_iter: int) -> _Run:
     return _Run(state, np.array(np.nan), np.ones(n), np.array(START_DAMPING), history, *counts)
 
 
-def _outcome(step, accepted, small, damping, new_cost):
-    """The stopping rule that fires on this pass (0: none), as `lm_loop`'s."""
-    converged = step & accepted & small & (damping < 1.0)
-    reproduced = step & accepted & (new_cost <= ROUNDING_COST)
-    stationary = step & ~accepted & (damping * DAMPING_UP > MAX_DAMPING)
-    return jnp.select([converged, reproduced, stationary], [1, 2, 3], 0)
-
-
-def _next_damping(step, accepted, damping):
-    """Marquardt's update after a trial step (none after the start's evaluation)."""
-    updated = jnp.where(accepted, damping / DAMPING_DOWN, damping * DAMPING_UP)
-    return jnp.where(step, updated, damping)
-
-
-def _pass(run: _Run, problem: Problem, tol, *, model, layout, forward, per_variable) -> _Run:
+def _pass(run: _Run, problem: Problem, tol, *, model, layout, forward, per_variable, verbose):
     """One pass: the start's evaluation (first pass) or a trial step and its verdict."""
     step = run.passes > 0
     damping = jnp.where(step, run.damping, 1.0)
@@ -118,27 +81,42 @@ def _pass(run: _Run, problem: Problem, tol, *, model, layout, forward, per_varia
     new, _, accepted = _lm_advance(_origin(run.state), damping, scale, step, problem, **static)
     fit_part = new.residual[: n_fit_residuals(problem.segments)]
     new = new._replace(residual=run.state.residual)
-    previous = run.state.cost
-    small = previous - new.cost <= tol * jnp.maximum(previous, 1e-300)
+    small = small_decrease(run.state.cost, new.cost, tol)
     grown = jnp.where(step, jnp.maximum(run.scale, new.diag), new.diag)
     n_accepted = run.n_accepted + (accepted & step)
+    if verbose:
+        _report_progress(verbose, step & accepted, run.passes, new.cost, damping)
     return _Run(
         jax.tree.map(partial(jnp.where, accepted), new, run.state),
         jnp.where(accepted, fit_part @ fit_part, run.fit),
         jnp.where(accepted, grown, run.scale),
-        _next_damping(step, accepted, run.damping),
+        next_damping(step, accepted, run.damping),
         jnp.where(accepted, run.history.at[n_accepted].set(new.cost), run.history),
         n_accepted,
         run.passes + 1,
-        _outcome(step, accepted, small, damping, new.cost),
+        stop_code(step, accepted, small, damping, new.cost),
     )
 
 
-@partial(jax.jit, static_argnames=("model", "layout", "forward", "per_variable"))
-def _run_on_device(start: _Run, problem, tol, *, model, layout, forward, per_variable):
+def _report_progress(verbose: int, accepted, iteration, cost, damping) -> None:
+    """Print `progress_line` from inside the loop after an accepted step (a host callback:
+    the loop's values are left as they are)."""
+
+    def show(accepted, iteration, cost, damping):
+        line = progress_line(verbose, int(iteration), float(cost), float(damping))
+        if bool(accepted) and line is not None:
+            print(line)
+
+    jax.debug.callback(show, accepted, iteration, cost, damping, ordered=True)
+
+
+@partial(jax.jit, static_argnames=("model", "layout", "forward", "per_variable", "verbose"))
+def _run_on_device(start: _Run, problem, tol, *, model, layout, forward, per_variable, verbose=0):
     """The whole run from ``start`` (`_start`): the start's evaluation, then trial
     steps until a stopping rule fires or the history is full."""
-    static = dict(model=model, layout=layout, forward=forward, per_variable=per_variable)
+    static = dict(
+        model=model, layout=layout, forward=forward, per_variable=per_variable, verbose=verbose
+    )
     max_iter = start.history.shape[0] - 1
 
     def going(run: _Run):
@@ -205,19 +183,15 @@ def levenberg_marquardt_on_device(
     verbose: int = 0,
     scaling: str = "per-variable",
 ) -> SolverResult:
-    r"""Projected Levenberg-Marquardt on $\|r(\cdot)\|^2$ (the steps and stopping
-    rules of `lm_loop`), the whole run in one program; a
-    ``verbose`` run goes through the host loop
-    (`levenberg_marquardt`), which prints each iteration."""
-    if verbose:
-        options = dict(max_iter=max_iter, tol=tol, verbose=verbose, scaling=scaling)
-        return levenberg_marquardt(free0, problem, model, layout, **options)
+    r"""Projected Levenberg-Marquardt on $\|r(\cdot)\|^2$ with the dense Jacobian (the rules of
+    `sk_offwhite.solvers._rules`), the whole run in one program; ``verbose`` prints the
+    progress from inside it."""
     start, problem, static = device_run(free0, problem, model, layout, max_iter, scaling)
-    run = jax.device_get(_run_on_device(start, problem, tol, **static))
+    run = jax.device_get(_run_on_device(start, problem, tol, verbose=int(verbose), **static))
     n_free = np.shape(free0)[0]
     history = np.asarray(run.history[: int(run.n_accepted) + 1])
     outcome = int(run.outcome)
-    message = OUTCOMES[outcome] + ("" if outcome else _creep(history))
+    message = OUTCOMES[outcome] + ("" if outcome else creep_note(history))
     n_iter, free = int(run.passes) - 1, np.asarray(run.state.free)[:n_free]
     cost = float(history[-1])
     return SolverResult(free, cost, history, n_iter, outcome > 0, message, float(run.fit))

@@ -18,7 +18,7 @@ $y_k = h(x_k, u_k; \theta)$ and $y_{k+1} = h(x_{k+1}, u_k; \theta)$, and the
 output reads it. The declared step, output map and
 constraints see only $x$; the hidden states' initial values are estimated with the
 declared ones (they are ordinary, free entries of $x_0$), unless the effect fixes
-them (``Effect.hidden_free = False``: each record starts them where the effect's
+them (``hidden_free = False``: each record starts them where the effect's
 ``hidden_start`` puts them).
 
 Where they are estimated and where they are not:
@@ -28,31 +28,30 @@ Where they are estimated and where they are not:
   that record; free ones are then fitted with the initial state;
 - a multiple-shooting window after a record's first frees them too, except the states
   the inputs alone determine (``hidden_free`` false): those start where the record's
-  inputs put them (``Effect.hidden_path``: a dead time's past commands are the commands
+  inputs put them (``hidden_path``: a dead time's past commands are the commands
   before the window), so no window fits what is known;
 - the sparse correction $\delta$ neither reads them nor corrects them: its
   dictionary is evaluated on the declared states and the inputs, and its rows are the
   declared states' unless ``delta_states`` names others;
 - the loop proposes effects on the declared states only.
 
-An effect with memory of one's own sets ``hidden_states`` (their names) and implements
-``advance`` (or ``follows_output`` and ``follow``), ``hidden_initial`` and, where a
-guess may lie where the first step forgets it, ``hidden_start`` and ``hidden_bounds``.
-One whose memory follows the inputs alone, whatever the parameters, may set
-``hidden_free = False``; its ``hidden_path`` then steps ``advance`` along a record, or
-gives the path in closed form.
+An effect with memory derives from `HiddenStates` (or `FollowsOutput`) and the base of
+its target.
 """
 
 from __future__ import annotations
 
+import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._physics import measured_states
+from .._physics import measured_states
 
 __all__ = [
     "DeclaredStates",
+    "FollowsOutput",
     "HiddenStateStep",
+    "HiddenStates",
     "SensorReading",
     "hidden_bounds",
     "hidden_start",
@@ -62,6 +61,86 @@ __all__ = [
     "with_hidden_states",
     "with_input_determined",
 ]
+
+
+class HiddenStates:
+    """Mixin of an effect with memory of its own: hidden states appended to the model's.
+
+    The effect sets ``hidden_states`` (their names) and implements `advance`,
+    `hidden_initial` and, where a guess may lie where the first step forgets it,
+    `hidden_start` and `hidden_bounds`. One whose memory follows the inputs alone, whatever
+    the parameters, sets ``hidden_free = False``; its `hidden_path` then steps `advance`
+    along a record, or gives the path in closed form.
+    """
+
+    target = "hidden"
+    hidden_free = True
+    """Whether the hidden states' initial values are estimated with the initial state;
+    ``False``: each record starts them where `hidden_start` puts them (the past commands of
+    a dead time, which only the record's first samples see), and `advance` updates them
+    from the inputs alone, so that every later sample's values are known (`hidden_path`)
+    and a shooting window starts them there rather than fitting them."""
+    follows_output = False
+    """Whether the hidden states follow the declared output map rather than the input
+    ([`FollowsOutput`][sk_offwhite.effects.FollowsOutput])."""
+
+    def advance(self, hidden, u, theta):
+        """``(input the declared step sees, next hidden states)`` from the hidden states and
+        the input (both unchanged by default)."""
+        return u, hidden
+
+    def hidden_initial(self) -> tuple[float, ...]:
+        """Initial guesses of the hidden states (estimated with the initial state)."""
+        return ()
+
+    def hidden_kinds(self, input_kinds) -> tuple[str, ...]:
+        """Physical kinds of the hidden states, given the model's input kinds."""
+        return ("generic",) * len(self.hidden_states)
+
+    def hidden_start(self, hidden, u, theta) -> tuple[float, ...]:
+        """Where a record whose first input is ``u`` starts the hidden states, given the
+        guess ``hidden`` (NumPy values; ``theta`` the parameters by name): the guess
+        itself by default. An effect whose first step forgets a guess outside some range
+        returns a value inside it, so that the fit of the initial state can move it."""
+        return tuple(hidden)
+
+    def hidden_bounds(self, u) -> tuple[tuple[float, float], ...]:
+        """Bounds ``(lower, upper)`` of each hidden state's initial value on a record with
+        inputs ``u`` (NumPy, one row per sample): none by default."""
+        return ((-np.inf, np.inf),) * len(self.hidden_states)
+
+    def hidden_path(self, u, theta) -> np.ndarray:
+        """For an effect that fixes its hidden states (`hidden_free` false): their values at
+        every sample of a record with inputs ``u`` (NumPy, one row per sample), started by
+        `hidden_start` and moved by `advance` (one ``lax.scan`` in double precision;
+        ``theta`` the parameters by name)."""
+        start = np.asarray(self.hidden_start(self.hidden_initial(), u[0], theta), float)
+
+        def step(hidden, u_k):
+            return self.advance(hidden, u_k, theta)[1], hidden
+
+        with jax.enable_x64(True):
+            _, path = jax.lax.scan(step, jnp.asarray(start), jnp.asarray(u, float))
+        return np.asarray(path, float)
+
+
+class FollowsOutput(HiddenStates):
+    """Mixin of an effect whose hidden states follow the declared output map rather than the
+    input (a slow sensor, [`SensorLag`][sk_offwhite.SensorLag]): it implements `follow`, and the
+    output reads its states."""
+
+    follows_output = True
+
+    def follow(self, hidden, now, after, theta):
+        """The next hidden states from these and the declared outputs at samples $k$
+        (``now``) and $k + 1$ (``after``)."""
+        return hidden
+
+    def follow_off(self, hidden, now, after):
+        """`follow` of the effect switched off ([`Switched`][sk_offwhite.Switched]): hidden
+        states whose reading is the declared output (the hidden states themselves by
+        default)."""
+        return hidden
 
 
 class HiddenStateStep:
@@ -119,7 +198,7 @@ class HiddenStateStep:
 def hidden_start(step, x0, u_first, theta: dict, fixed=None) -> np.ndarray:
     """``x0`` (a record's initial-state guess) with each effect's hidden states where a
     record whose first input is ``u_first`` starts them
-    ([`Effect.hidden_start`][sk_offwhite.Effect.hidden_start]); entries marked in ``fixed`` and
+    (`Effect.hidden_start`); entries marked in ``fixed`` and
     models without hidden states are left as they are, but for the states of an effect that fixes
     them (``hidden_free`` false), which are always started there."""
     x0 = np.array(x0, dtype=float)
@@ -152,7 +231,7 @@ def input_determined(step, n_states: int) -> np.ndarray:
 def with_input_determined(step, states, u, theta: dict, samples) -> np.ndarray:
     """``states`` (one row per sample in ``samples`` of a record with inputs ``u``) with
     the states the inputs determine (`input_determined`) set to their values there
-    ([`Effect.hidden_path`][sk_offwhite.Effect.hidden_path])."""
+    (`Effect.hidden_path`)."""
     states = np.array(states, dtype=float)
     if not isinstance(step, HiddenStateStep):
         return states
@@ -175,7 +254,7 @@ def sensor_readings(step) -> tuple[tuple[int, int], ...]:
 def hidden_bounds(step, u, n_states: int) -> tuple[np.ndarray, np.ndarray]:
     """Lower and upper bounds of the ``n_states`` initial states on a record with inputs
     ``u`` that the effects' hidden states set
-    ([`Effect.hidden_bounds`][sk_offwhite.Effect.hidden_bounds]); the declared states and models
+    (`Effect.hidden_bounds`); the declared states and models
     without hidden states are unbounded here."""
     lower, upper = np.full(n_states, -np.inf), np.full(n_states, np.inf)
     if not isinstance(step, HiddenStateStep):

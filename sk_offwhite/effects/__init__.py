@@ -1,0 +1,67 @@
+"""Named physical effects that [`augment`][sk_offwhite.augment] adds to a declared physics.
+
+An effect is the explicit, parametrised form of something a residual analysis can point at:
+an overflow, a saturation, a friction, a lag. One module per family: limits
+(`Overflow`, `OutputSaturation`, `InputSaturation`, `DeadZone`, `DifferenceDeadZone`),
+terms (`Bias`, `Leak`, `PowerLoss`), mechanics (`Friction`, `Stiffness`, `PowerStiffness`,
+`QuadraticDrag`, `PowerDrag`), play (`Backlash`), lags and delay (`InputLag`, `SensorLag`,
+`InputDelay`), sensors (`OutputOffset`, `SensorCalibration`, `SensorStep`) and laws
+(`RelaxedLaw`, `DictionaryTerm`). Every name is also importable from `sk_offwhite`.
+"""
+
+from ._augment import augment
+from ._base import (
+    AdditiveEffect,
+    Effect,
+    InputEffect,
+    LawEffect,
+    OutputEffect,
+    StateEffect,
+)
+from ._hidden import FollowsOutput, HiddenStates
+from ._lags import FirstOrderLag, InputDelay, InputLag, SensorLag
+from ._laws import DictionaryTerm, RelaxedLaw
+from ._limits import DeadZone, DifferenceDeadZone, InputSaturation, OutputSaturation, Overflow
+from ._mechanics import Friction, PowerDrag, PowerStiffness, QuadraticDrag, Stiffness
+from ._play import Backlash
+from ._sensors import OutputOffset, SensorCalibration, SensorStep
+from ._switched import Switched, SwitchedTerm, switched
+from ._terms import Bias, Leak, PowerLoss
+
+__all__ = [
+    "AdditiveEffect",
+    "Backlash",
+    "Bias",
+    "DeadZone",
+    "DictionaryTerm",
+    "DifferenceDeadZone",
+    "Effect",
+    "FirstOrderLag",
+    "FollowsOutput",
+    "Friction",
+    "HiddenStates",
+    "InputDelay",
+    "InputEffect",
+    "InputLag",
+    "InputSaturation",
+    "LawEffect",
+    "Leak",
+    "OutputEffect",
+    "OutputOffset",
+    "OutputSaturation",
+    "Overflow",
+    "PowerDrag",
+    "PowerLoss",
+    "PowerStiffness",
+    "QuadraticDrag",
+    "RelaxedLaw",
+    "SensorCalibration",
+    "SensorLag",
+    "SensorStep",
+    "StateEffect",
+    "Stiffness",
+    "Switched",
+    "SwitchedTerm",
+    "augment",
+    "switched",
+]
