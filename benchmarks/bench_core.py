@@ -75,6 +75,7 @@ def time_fit(library, horizon):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=50)
+    parser.add_argument("--json", default=None, help="results file (default benchmarks/results)")
     args = parser.parse_args(argv)
     print(
         f"machine: {platform.machine()}, {jax.device_count()} {jax.devices()[0].platform} "
@@ -91,6 +92,7 @@ def main(argv=None):
         "| fit, first (s) | fit, warm cache (s) | iterations | solver stop |"
     )
     print("|---|---|---|---|---|---|---|---|---|")
+    rows = []
     for label, library in cases:
         for horizon in (None, N_SAMPLES):
             compile_s, us_step, n_free = time_value_and_grad(library, horizon, args.repeats)
@@ -99,6 +101,16 @@ def main(argv=None):
                 f"| {label} | {horizon} | {n_free} | {compile_s:.2f} | {us_step:.3f} "
                 f"| {first:.2f} | {second:.2f} | {est.n_iter_} | {est.solver_message_} |"
             )
+            rows.append(
+                [label, horizon, n_free, compile_s, us_step, first, second, est.n_iter_]
+                + [est.solver_message_]
+            )
+    from _results import table, write_results  # same folder: run as a script
+
+    columns = ["model", "horizon", "free vars", "compile (s)", "value+grad (us/step)"]
+    columns += ["fit, first (s)", "fit, again (s)", "iterations", "solver stop"]
+    title = f"{N_SAMPLES} samples, Cascaded Tanks eq. (21), float64"
+    write_results("bench_core", [table(title, columns, rows)], path=args.json, argv=argv)
 
 
 if __name__ == "__main__":

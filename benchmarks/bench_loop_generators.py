@@ -27,6 +27,7 @@ changes with it depends on where its fits stop rather than on the data.
 from __future__ import annotations
 
 import argparse
+import os
 import time
 import warnings
 
@@ -230,8 +231,8 @@ def run(
     data = make(random_state=0, **({"n_samples": length} if short else {}))
     settings = LoopSettings(fit_delta=delta, lm_scaling=lm_scaling, max_iter=max_iter)
     result, seconds = _timed_loop(data.physics, data, settings)
-    _print_run(name, data, result, kind, parameter, seconds)
-    return data, result, settings
+    row = _print_run(name, data, result, kind, parameter, seconds)
+    return data, result, settings, row
 
 
 def _timed_loop(physics, data, settings) -> tuple:
@@ -244,12 +245,14 @@ def _timed_loop(physics, data, settings) -> tuple:
     return result, time.perf_counter() - start
 
 
-def _print_run(name, data, result, kind, parameter, seconds) -> None:
+def _print_run(name, data, result, kind, parameter, seconds) -> dict:
+    """Print one generator's line; return it as a results row."""
     rmse = _validation(result, data)
-    effect = ""
+    effect, fitted = "", None
     if parameter is not None and parameter[0] in result.final.parameters_:
         truth = data.hidden_effect["rates"][parameter[1]]
         effect = f"; {parameter[0]} {result.final.parameters_[parameter[0]]:.4g} (true {truth:.4g})"
+        fitted = f"{parameter[0]} {result.final.parameters_[parameter[0]]:.4g} (true {truth:.4g})"
     hidden = data.hidden_effect
     named = [h for h in result.hypotheses if h.equation_index == hidden["equation"]]
     sign = "no hypothesis" if not named else f"sign {named[0].sign} (true {hidden['sign']})"
@@ -267,9 +270,22 @@ def _print_run(name, data, result, kind, parameter, seconds) -> None:
     for note in result.notes:
         if "tell them apart" in note:
             print(f"  {note}")
+    return {
+        "system": name,
+        "samples": len(data.u),
+        "effects": ", ".join(e.name for e in result.effects),
+        "right kind": any(isinstance(e, kind) for e in result.effects),
+        "hidden effect's parameter": fitted,
+        "declared parameters within": _parameter_error(result, data),
+        "val RMSE declared": rmse["declared physics"],
+        "val RMSE augmented": rmse["augmented physics"],
+        "chosen": result.chosen,
+        "failures": len(result.failures),
+        "loop (s)": seconds,
+    }
 
 
-def again(name: str, data, result, settings) -> None:
+def again(name: str, data, result, settings, row=None) -> dict:
     """The loop run on the physics ``result`` returned, started at its fitted values."""
     physics = warm_physics(result.final.physics_, result.final)
     second, seconds = _timed_loop(physics, data, settings)
@@ -284,6 +300,37 @@ def again(name: str, data, result, settings) -> None:
     )
     for failure in second.failures:
         print(f"  failure: {failure}")
+    return {
+        "system": name,
+        "effects added": ", ".join(e.name for e in second.effects),
+        "CV RMSE before": cv.get("baseline", nan),
+        "CV RMSE after": cv.get("final", nan),
+        "val RMSE before": rmse.get("declared physics", nan),
+        "val RMSE after": rmse.get("augmented physics", nan),
+        "chosen": second.chosen,
+        "failures": len(second.failures),
+    }
+
+
+def write_json(rows: list, again_rows: list, args) -> None:
+    """The results so far, merged with earlier rows of the same file for other systems."""
+    import json
+
+    from _results import default_path, records_table, write_results  # run as a script
+
+    name = "bench_loop_generators_short" if args.short else "bench_loop_generators"
+    path = default_path(name) if args.json is None else args.json
+    if args.names and os.path.exists(path):
+        earlier = json.load(open(path, encoding="utf-8"))["data"]
+        done = {r["system"] for r in rows}
+        rows = [r for r in earlier["rows"] if r["system"] not in done] + rows
+        again_rows = [r for r in earlier["again"] if r["system"] not in done] + again_rows
+    title = "The loop on each generator (seed 0; validation RMSE, init_window protocol)"
+    tables = [records_table(title, rows)]
+    if again_rows:
+        tables.append(records_table("The loop run again on the physics it returned", again_rows))
+    data = {"rows": rows, "again": again_rows}
+    write_results(name, tables, path=path, data=data)
 
 
 def main(argv=None) -> None:
@@ -302,12 +349,16 @@ def main(argv=None) -> None:
         "--max-iter", type=int, default=LoopSettings.max_iter,
         help="every fit's iteration limit (LoopSettings.max_iter)",
     )  # fmt: skip
+    parser.add_argument("--json", default=None, help="results file (default benchmarks/results)")
     args = parser.parse_args(argv)
+    rows, again_rows = [], []
     for name in args.names or SYSTEMS:
         outcome = run(name, args.short, args.delta, args.lm_scaling, args.max_iter)
+        rows.append(outcome[-1])
         if args.again:
-            again(name, *outcome)
+            again_rows.append(again(name, *outcome))
         jax.clear_caches()  # each candidate compiles its own program: release them
+        write_json(rows, again_rows, args)
 
 
 if __name__ == "__main__":

@@ -76,6 +76,7 @@ def fit_setting(physics, library, data, settings) -> tuple:
 def main(argv=None) -> list[dict]:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--n-jobs", type=int, default=2)
+    parser.add_argument("--json", default=None, help="results file (default benchmarks/results)")
     args = parser.parse_args(argv)
     enable_fused_loops()
     enable_compilation_cache()
@@ -102,6 +103,12 @@ def main(argv=None) -> list[dict]:
             rows.append(row)
             print(" ".join(f"{k}={v:.4f}" if isinstance(v, float) else f"{k}={v}"
                            for k, v in row.items()), flush=True)  # fmt: skip
+    from _results import records_table, write_results  # same folder: run as a script
+
+    title = "The output correction's dictionary, setting by setting (validation RMSE, V)"
+    notes = [f"augmented physics alone: CV {result.cv_errors['final']:.4f}"]
+    tables = [records_table(title, rows, notes)]
+    write_results("bench_output_dictionary", tables, path=args.json, argv=argv)
     return rows
 
 

@@ -61,7 +61,9 @@ def measure(draws: int, mu_of, prune: bool) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--draws", type=int, default=10)
-    draws = parser.parse_args().draws
+    parser.add_argument("--json", default=None, help="results file (default benchmarks/results)")
+    args = parser.parse_args()
+    draws = args.draws
     xi, phi, y, _, noise = draw(0)
     sparse_relaxation(xi, phi, y, 1.05 * np.linalg.norm(noise))  # warm-up: imports, caches
     bounds = {
@@ -73,6 +75,7 @@ def main() -> None:
         f"T = {N_ROWS}, n_theta = {N_THETA}, m = {N_FEATURES}, {N_ACTIVE}-sparse, "
         f"noise uniform +-{NOISE_BOUND:g}, {draws} draws"
     )
+    rows = []
     for label, mu_of in bounds.items():
         for prune in (False, True):
             r = measure(draws, mu_of, prune)
@@ -81,6 +84,24 @@ def main() -> None:
                 f"mean |supp| {r['size']:.1f}, max residual/mu {r['ratio']:.9f}, "
                 f"{1e3 * r['seconds']:.0f} ms per solve"
             )
+            rows.append(
+                [label, prune, f"{r['exact']}/{draws}", r["size"], r["ratio"], 1e3 * r["seconds"]]
+            )
+    from _results import table, write_results  # same folder: run as a script
+
+    columns = [
+        "noise bound",
+        "prune",
+        "exact support",
+        "mean support size",
+        "max residual / mu",
+        "ms per solve",
+    ]
+    title = (
+        f"T = {N_ROWS}, {N_THETA} physical regressors, {N_FEATURES} columns, "
+        f"{N_ACTIVE}-sparse, noise uniform in +-{NOISE_BOUND:g}, {draws} draws"
+    )
+    write_results("bench_relaxation", [table(title, columns, rows)], path=args.json)
 
 
 if __name__ == "__main__":

@@ -178,6 +178,7 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true")
     parser.add_argument("--out", default="reports/benchmarks")
+    parser.add_argument("--json", default=None, help="results file (default benchmarks/results)")
     args = parser.parse_args(argv)
     from run_all import machine  # the benchmarks folder is on sys.path when run as a script
 
@@ -196,6 +197,11 @@ def main(argv=None) -> None:
     text = "\n\n".join(f"**{t}**\n\n{_table(results[k])}" for k, t in titles.items())
     stem.with_suffix(".md").write_text(text + "\n")
     print(text)
+    from _results import records_table, write_results  # same folder: run as a script
+
+    tables = [records_table(t, results[k]) for k, t in titles.items()]
+    name = "bench_scaling_quick" if args.quick else "bench_scaling"
+    write_results(name, tables, path=args.json, argv=argv, data=results)
 
 
 if __name__ == "__main__":

@@ -129,16 +129,23 @@ def main(argv=None) -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--default-loops", action="store_true", help="XLA's default loops")
     parser.add_argument("--out", default="reports/benchmarks")
+    parser.add_argument("--json", default=None, help="results file (default benchmarks/results)")
     args = parser.parse_args(argv)
     if not args.default_loops:
         from sk_offwhite import enable_fused_loops
 
         enable_fused_loops()
-    text = _markdown(compare(args.repeats), "XLA's default" if args.default_loops else "fused")
+    loops = "XLA's default" if args.default_loops else "fused"
+    rows = compare(args.repeats)
+    text = _markdown(rows, loops)
     print(text)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "bench_solvers.md").write_text(text, encoding="utf-8")
+    from _results import records_table, write_results  # same folder: run as a script
+
+    title = f"Same residuals, same start, γ = 0, at most {MAX_STEPS} iterations; loops: {loops}"
+    write_results("bench_solvers", [records_table(title, rows)], path=args.json, argv=argv)
 
 
 if __name__ == "__main__":

@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pysindy as ps
@@ -51,7 +52,9 @@ def vehicle_run(seed: int, noise: float, one_se: bool = False) -> dict:
     }
 
 
-def vehicle(seeds: int, one_se: bool = False) -> None:
+def vehicle(seeds: int, one_se: bool = False) -> list:
+    """Print and return one row per noise bound."""
+    rows = []
     for noise in NOISE_BOUNDS:
         runs = [vehicle_run(seed, noise, one_se) for seed in range(seeds)]
         exact = sum(r["exact"] for r in runs)
@@ -63,6 +66,8 @@ def vehicle(seeds: int, one_se: bool = False) -> None:
             f"terms kept {terms}; chosen gamma/gamma_max [{ratios}]; {seconds:.0f} s per path "
             "(median)"
         )
+        rows.append([noise, f"{exact}/{seeds}", str(terms), f"[{ratios}]", seconds])
+    return rows
 
 
 def in_units(physics: PhysicsModel, scale: float) -> PhysicsModel:
@@ -88,7 +93,9 @@ def in_units(physics: PhysicsModel, scale: float) -> PhysicsModel:
     )
 
 
-def units(one_se: bool = False, rules=("global", "per-variable")) -> None:
+def units(one_se: bool = False, rules=("global", "per-variable")) -> list:
+    """Print and return one row per rule and unit."""
+    rows = []
     data = load_cascaded_tanks()
     physics = cascaded_tanks_physics(fixed={"k4": 0.05})
     library = ps.PolynomialLibrary(degree=2)
@@ -111,6 +118,8 @@ def units(one_se: bool = False, rules=("global", "per-variable")) -> None:
                 f"{path.summary()}",
                 flush=True,
             )
+            rows.append([rule, scale, path.best_gamma, est.n_nonzero_, str(terms), r2, seconds])
+    return rows
 
 
 def main(argv=None) -> None:
@@ -125,12 +134,28 @@ def main(argv=None) -> None:
     parser.add_argument(
         "--lm-scaling", nargs="+", default=["global", "per-variable"], help=argparse.SUPPRESS
     )
+    parser.add_argument(
+        "--results", default=None, help="folder of the results files (default benchmarks/results)"
+    )
     args = parser.parse_args(argv)
     warnings.simplefilter("ignore")
+    from _results import RESULTS, table, write_results  # same folder: run as a script
+
+    folder = Path(args.results) if args.results else RESULTS
+    rule = "one standard error" if args.one_standard_error else "lowest CV error"
     if "units" in args.sections:
-        units(args.one_standard_error, args.lm_scaling)
+        rows = units(args.one_standard_error, args.lm_scaling)
+        columns = ["lm_scaling", "scale", "chosen γ", "terms kept", "support", "R²", "path (s)"]
+        title = f"Cascaded Tanks estimation record in three units, γ by 3-fold CV ({rule})"
+        tables = [table(title, columns, rows)]
+        write_results("bench_sparsity_units", tables, path=folder / "bench_sparsity_units.json")
     if "vehicle" in args.sections:
-        vehicle(args.seeds, args.one_standard_error)
+        rows = vehicle(args.seeds, args.one_standard_error)
+        columns = ["noise bound", "exact Δ support", "terms kept", "γ / γ_max", "path (s, median)"]
+        title = f"Vehicle of Section 5.1, T = 2000, γ by 3-fold CV ({rule})"
+        tables = [table(title, columns, rows)]
+        path = folder / "bench_sparsity_vehicle.json"
+        write_results("bench_sparsity_vehicle", tables, path=path)
 
 
 if __name__ == "__main__":

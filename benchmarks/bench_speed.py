@@ -691,6 +691,7 @@ def main(argv=None):
         "cannot share this package's environment); runs that contender there",
     )
     parser.add_argument("--only-fit", action="store_true", help="only the fresh-process fits")
+    parser.add_argument("--json", default=None, help="results file (default benchmarks/results)")
     parser.add_argument("--one", choices=sorted(CONTENDERS), help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.fused_loops:
@@ -722,6 +723,21 @@ def main(argv=None):
     print(text)
     (out / "bench_speed.md").write_text(text, encoding="utf-8")
     (out / "bench_speed.json").write_text(json.dumps(results, indent=2), encoding="utf-8")
+    from _results import markdown_tables, records_table, write_results  # run as a script
+
+    tables = markdown_tables("Speed", text.split("## Other")[0])
+    for key, title in (
+        ("grid", "γ path and grid search against one fit"),
+        ("batched", "The path's γ batched against the same runs in turn"),
+        ("memory", "Memory over repeated fits"),
+        ("main_job", "The main job in a fresh process, without the cache"),
+        ("readme_command", "The README's command, its cache empty then filled"),
+    ):
+        if isinstance(results.get(key), dict):
+            flat = {k: v for k, v in results[key].items() if not isinstance(v, dict | list)}
+            if flat:
+                tables.append(records_table(title, [flat]))
+    write_results("bench_speed", tables, path=args.json, argv=argv, data=results)
 
 
 if __name__ == "__main__":

@@ -351,6 +351,26 @@ def write(rows: list[dict], info: dict, out: Path, quick: bool) -> Path:
     return stem.with_suffix(".md")
 
 
+def results_tables(rows: list[dict]) -> list:
+    """The rows as the documentation's table (``benchmarks/_results.py``)."""
+    from _results import table  # same folder: run as a script
+
+    columns = ["system", "model", "val RMSE", "val fit %", "param. error", "support"]
+    columns += ["fit (s)", "with selection (s)", "notes"]
+    cells = []
+    for r in rows:
+        if "error" in r:
+            cells.append([r["system"], r["model"], "failed", None, None, None, None, None])
+            cells[-1].append(r["error"])
+            continue
+        rmse = r["rmse"] if not r["diverged"] else f"{r['rmse']:.4g} (diverged)"
+        support = f"{r['support']}/{r['n_terms']}" if r["n_terms"] else "0"
+        cells.append([r["system"], r["model"], rmse, r["fit_percent"], r["parameter_error"]])
+        cells[-1] += [support, r["fit_s"], r["select_s"], r["note"]]
+    title = f"Validation free run, the first {INIT_WINDOW} samples estimate the initial state"
+    return [table(title, columns, cells)]
+
+
 def loop_settings(quick: bool) -> LoopSettings:
     """Loop settings of the benchmark: the default relative γ grid, chosen by 3-fold CV."""
     if quick:
@@ -363,7 +383,12 @@ def main(argv=None) -> None:
     parser.add_argument("--quick", action="store_true", help="shorter records, smaller grids")
     parser.add_argument("--out", default="reports/benchmarks")
     parser.add_argument("--only", default=None, help="run the systems whose name contains this")
+    parser.add_argument("--json", default=None, help="results file (default benchmarks/results)")
     args = parser.parse_args(argv)
+    from _results import default_path, write_results  # same folder: run as a script
+
+    name = "run_all_quick" if args.quick else "run_all"
+    results_path = Path(args.json) if args.json else default_path(name)
     info, rows = machine(), []
     settings = loop_settings(args.quick)
     for build in all_cases(args.quick):
@@ -378,6 +403,13 @@ def main(argv=None) -> None:
         json_path = Path(args.out) / ("run_all_quick.json" if args.quick else "run_all.json")
         merged = merge_previous(rows, json_path) if args.only else rows
         path = write(merged, info, Path(args.out), args.quick)
+        if args.only and results_path.exists():
+            earlier = json.loads(results_path.read_text())["data"]["rows"]
+            done = {r["system"] for r in rows}
+            merged = [r for r in earlier if r["system"] not in done] + rows
+        tables = results_tables(merged)
+        data = {"mode": "quick" if args.quick else "full", "rows": merged}
+        write_results(name, tables, path=results_path, argv=argv, data=data)
     print(path.read_text())
 
 

@@ -1,0 +1,56 @@
+"""MkDocs hook: fail the build when a page still shows a Sphinx role or directive.
+
+Docstrings and pages are written in the Markdown that mkdocstrings renders (maths as
+``$...$`` and ``$$`` blocks, cross-references as autorefs links). A role such as
+``:class:`Foo``` or a ``.. math::`` directive left in a docstring is not an error for
+Markdown: it shows as raw text on the page. This hook reads the HTML of every built page and
+stops the build with the list of offending pages and lines.
+"""
+
+from __future__ import annotations
+
+import html
+import re
+
+from mkdocs.exceptions import PluginError
+
+ROLES = ("math", "func", "class", "meth", "mod", "data", "attr")
+ROLE = re.compile(r"(?<![\w.\-]):(?:py:)?(?:" + "|".join(ROLES) + r"):(?=`|<code|<span|\w|~)")
+DIRECTIVE = re.compile(r"\.\.\s+math::")
+TAG = re.compile(r"<[^>]+>")
+SCRIPT = re.compile(r"<script\b.*?</script>", re.DOTALL | re.IGNORECASE)
+
+_found: dict[str, list[str]] = {}
+
+
+def offending_lines(page_html: str) -> list[str]:
+    """The lines of ``page_html`` (scripts removed) that hold a raw role or directive, as
+    text without tags."""
+    lines = []
+    for line in SCRIPT.sub("", page_html).splitlines():
+        if ROLE.search(line) or DIRECTIVE.search(line):
+            text = html.unescape(TAG.sub("", line)).strip()
+            lines.append(text[:160] or line.strip()[:160])
+    return lines
+
+
+def on_pre_build(config, **kwargs):
+    _found.clear()
+
+
+def on_post_page(output, page, config, **kwargs):
+    lines = offending_lines(output)
+    if lines:
+        _found[page.file.src_uri] = lines
+    return output
+
+
+def on_post_build(config, **kwargs):
+    if not _found:
+        return
+    report = [f"  {page}: {line}" for page, lines in sorted(_found.items()) for line in lines[:10]]
+    roles = ", ".join(f":{r}:" for r in ROLES)
+    raise PluginError(
+        f"raw Sphinx roles or directives ({roles}, .. math::) in the built pages; write them "
+        "as Markdown ($...$, $$ blocks, [`name`][full.path] links):\n" + "\n".join(report)
+    )
