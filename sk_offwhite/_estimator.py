@@ -132,7 +132,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
     change of the normalised simulated output per unit $\Omega_{ij}$, measured on the
     physics-only fit. Every term is dimensionless: rescaling ``u``, ``z``, the states or a
     dictionary column leaves the fitted model unchanged. With a dictionary the fit has three
-    stages (see `sk_offwhite._sparsity`): the physics alone, which gives
+    stages (see `sk_offwhite.fitting._sparsity`): the physics alone, which gives
     $s_{ij}$ and ``gamma_max_``; the penalised fit; pruning of the terms that do not
     matter and a refit of the support without the penalty, so ``coef_`` has exact zeros.
     $S$ and $R$ pick the corrected state equations (``delta_states``) and

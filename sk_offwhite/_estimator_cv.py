@@ -55,8 +55,9 @@ class GreyBoxSparseRegressorCV(GreyBoxSparseRegressor):
     n_jobs : int, default=None
         Processes that fit the folds while this one fits the whole record (joblib's
         convention); the numbers are the same as with one.
-    **params
-        Every other keyword of [`GreyBoxSparseRegressor`][sk_offwhite.GreyBoxSparseRegressor].
+    delta_states, delta_outputs, prune_tol, refit, l1_smoothing, shooting_weight, solver, \
+lm_scaling, optimizer, max_iter, tol, init_window, warm_start, verbose, random_state
+        As [`GreyBoxSparseRegressor`][sk_offwhite.GreyBoxSparseRegressor].
 
     Attributes
     ----------

@@ -376,7 +376,7 @@ def fit_gamma_path(
 
     The grid is fitted in order, each $\gamma$ from the previous one's solution
     (continuation; the first from the physics-only fit, which is computed once per record,
-    see `sk_offwhite._sparsity`). Continuation matters: a correction whose terms
+    see `sk_offwhite.fitting._sparsity`). Continuation matters: a correction whose terms
     partly cancel (large weights, small sum) costs much $\ell_1$ norm, and a fit
     started from $\Omega = 0$ at a small $\gamma$ can settle in another local
     minimum, while a path that grows the support term by term reaches it.

@@ -83,11 +83,11 @@ def _checked_corner(corner) -> float:
 class Effect:
     """Base class of every effect: named, parametrised, immutable and compared by value.
 
-    An effect derives from the base of what it acts on: [`InputEffect`][sk_offwhite.InputEffect]
-    (the input the declared step sees), [`StateEffect`][sk_offwhite.StateEffect] (the state
+    An effect derives from the base of what it acts on: [`InputEffect`][sk_offwhite.effects.InputEffect]
+    (the input the declared step sees), [`StateEffect`][sk_offwhite.effects.StateEffect] (the state
     update after it; [`AdditiveEffect`][sk_offwhite.AdditiveEffect] adds a term to one equation),
-    [`OutputEffect`][sk_offwhite.OutputEffect] (the output map) or
-    [`LawEffect`][sk_offwhite.LawEffect] (the declared parameters); an effect with memory of its
+    [`OutputEffect`][sk_offwhite.effects.OutputEffect] (the output map) or
+    [`LawEffect`][sk_offwhite.effects.LawEffect] (the declared parameters); an effect with memory of its
     own also derives from `HiddenStates`. It sets ``name`` and implements `parameters`,
     `describe` and its base's ``apply_*`` method; the others leave their argument as it is, so
     that [`augment`][sk_offwhite.augment] can chain every effect the same way. Its attributes
