@@ -55,7 +55,11 @@ def failure_reason(fit: float, moved: bool) -> str | None:
             "output standard deviations"
         )
     if not moved and fit > 1.0:
-        return "the solver never left an initial guess that simulates worse than the mean"
+        return (
+            "the solver never left an initial guess that simulates worse than the mean (its "
+            "derivatives there may not be finite, as a square root of a state started at "
+            "zero gives: give physics.x0 a guess inside the physics' domain)"
+        )
     return None
 
 

@@ -212,12 +212,27 @@ def _damped_step(state: _State, damping: float, scale, plan: Colouring, moving) 
     return step
 
 
+def _solved_step(state: _State, damping, scale, plan: Colouring, moving) -> np.ndarray | None:
+    """`_damped_step`, or ``None`` where the damped normal equations cannot be solved (a
+    non-finite Jacobian, as a square root of a negative level gives, or an exactly singular
+    factor): the trial is then rejected and Levenberg-Marquardt raises the damping."""
+    if not (np.all(np.isfinite(state.gradient)) and np.all(np.isfinite(state.normal_gg))):
+        return None
+    try:
+        step = _damped_step(state, damping, scale, plan, moving)
+    except (RuntimeError, np.linalg.LinAlgError):  # splu: "Factor is exactly singular"
+        return None
+    return step if np.all(np.isfinite(step)) else None
+
+
 def _trial(state: _State, damping, scale, problem, model, layout, plan: Colouring):
     """Damped step (``scale``: see `damped_diagonal`), projected
     on the box, and its cost (the state there is formed only if the step is accepted)."""
     lower, upper = np.asarray(problem.lower), np.asarray(problem.upper)
     moving = ~held_at_bound(state.free, state.gradient, lower, upper)
-    step = _damped_step(state, damping, scale, plan, moving)
+    step = _solved_step(state, damping, scale, plan, moving)
+    if step is None:  # no step at this damping: rejected, so the damping grows
+        return state.free, np.inf, None
     candidate = np.clip(state.free + step, lower, upper)
     cost = _cost(jnp.asarray(candidate), state.anchor, problem, model, layout)
     return candidate, float(cost), None
