@@ -83,16 +83,17 @@ def _checked_corner(corner) -> float:
 class Effect:
     """Base class of every effect: named, parametrised, immutable and compared by value.
 
-    An effect derives from the base of what it acts on: [`InputEffect`][sk_offwhite.effects.InputEffect]
-    (the input the declared step sees), [`StateEffect`][sk_offwhite.effects.StateEffect] (the state
-    update after it; [`AdditiveEffect`][sk_offwhite.AdditiveEffect] adds a term to one equation),
+    An effect derives from the base of what it acts on:
+    [`InputEffect`][sk_offwhite.effects.InputEffect] (the input the declared step sees),
+    [`StateEffect`][sk_offwhite.effects.StateEffect] (the state update after it;
+    [`AdditiveEffect`][sk_offwhite.AdditiveEffect] adds a term to one equation),
     [`OutputEffect`][sk_offwhite.effects.OutputEffect] (the output map) or
-    [`LawEffect`][sk_offwhite.effects.LawEffect] (the declared parameters); an effect with memory of its
-    own also derives from `HiddenStates`. It sets ``name`` and implements `parameters`,
-    `describe` and its base's ``apply_*`` method; the others leave their argument as it is, so
-    that [`augment`][sk_offwhite.augment] can chain every effect the same way. Its attributes
-    are its constructor's arguments: equal effects give equal, hashable models (valid ``jit``
-    static arguments) and pickle.
+    [`LawEffect`][sk_offwhite.effects.LawEffect] (the declared parameters); an effect with memory of
+    its own also derives from `HiddenStates`. It sets ``name`` and implements `parameters`,
+    `describe` and its base's ``apply_*`` method; the others leave their argument as it is, so that
+    [`augment`][sk_offwhite.augment] can chain every effect the same way. Its attributes are its
+    constructor's arguments: equal effects give equal, hashable models (valid ``jit`` static
+    arguments) and pickle.
     """
 
     target = ""
