@@ -1,13 +1,10 @@
 """sk_offwhite: physics-based multi-step system identification with sparse corrections."""
 
-from ._estimator import (
-    DivergenceWarning,
-    GreyBoxSparseRegressor,
-    RunawayParameterWarning,
-    expected_failed_checks,
-)
+from ._estimator import GreyBoxSparseRegressor
 from ._estimator_cv import GreyBoxSparseRegressorCV
 from ._path import GammaPath, fit_gamma_path, gamma_grid
+from ._sklearn_glue import expected_failed_checks
+from ._warnings import DivergenceWarning, RunawayParameterWarning
 from .dictionaries import RadialBasis, RidgeBasis, compile_basis
 from .effects import (
     AdditiveEffect,

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import copy
 import hashlib
 import warnings
 from numbers import Integral, Real
@@ -11,30 +10,35 @@ import jax
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin, _fit_context, clone
 from sklearn.exceptions import ConvergenceWarning
-from sklearn.metrics import r2_score
-from sklearn.utils import Bunch, metadata_routing
+from sklearn.utils import metadata_routing
 from sklearn.utils._param_validation import Interval, StrOptions
-from sklearn.utils.validation import _check_feature_names, _check_sample_weight, check_is_fitted
+from sklearn.utils.validation import _check_feature_names
 
+from ._estimator_checks import (
+    _check_counts,
+    _indices,
+    records_digest,
+)
+from ._fitted import FittedModel
+from ._sklearn_glue import _nested_params, _safe_clone, _short_repr
 from ._validation import (
     as_records,
     check_input_width,
-    check_inputs,
     check_pair,
     check_physics,
     is_experiment_list,
 )
+from ._warnings import (
+    _warn_if_runaway,
+)
 from .dictionaries import compile_basis
 from .effects._hidden import n_declared_states
-from .fitting._problem import SolverOptions, build_model, fit_records, initial_state_guess
+from .fitting._checks import bound_reason, fit_problems, non_finite_feature
+from .fitting._problem import SolverOptions, build_model, fit_records
 from .fitting._sparsity import SparseOptions
-from .fitting._verdict import runaway_parameters
-from .model._equations import format_equations
 from .model._physics import PhysicsModel
-from .model_selection._split import check_sample_index, warn_if_fragmented
+from .model_selection._split import check_fold_rows, check_sample_index, warn_if_fragmented
 from .runtime._backend import to_device
-from .simulation._initial import estimate_initial_state
-from .simulation._objective import CostWeights
 from .simulation._rollout import free_run_record
 from .simulation._segments import split_at_gaps
 from .solvers import LevenbergMarquardt, Optax
@@ -42,72 +46,8 @@ from .solvers._rules import LM_SCALINGS
 
 __all__ = ["GreyBoxSparseRegressor"]
 
-_ROW_ORDER_REASON = (
-    "rows are consecutive time samples of one simulated trajectory, not independent "
-    "observations: reordering or subsetting them changes the simulation"
-)
 
-
-_ARGUMENT_NAME_REASON = (
-    "the signature follows the system-identification contract fit(u, z) / score(u, z); the "
-    "check calls score(X, y=...) by keyword or reads the literal name 'y'. Positional calls, "
-    "which Pipeline, GridSearchCV and cross_validate make, are unaffected, and the "
-    "n_features_in_ consistency the check is after is tested separately"
-)
-
-
-def expected_failed_checks(estimator=None) -> dict[str, str]:
-    """scikit-learn checks that do not apply, each with the reason.
-
-    Pass it to ``check_estimator(..., expected_failed_checks=...)`` or
-    ``parametrize_with_checks(..., expected_failed_checks=...)``.
-    """
-    return {
-        "check_methods_sample_order_invariance": _ROW_ORDER_REASON,
-        "check_methods_subset_invariance": _ROW_ORDER_REASON,
-        "check_fit_score_takes_y": _ARGUMENT_NAME_REASON,
-        "check_n_features_in_after_fitting": _ARGUMENT_NAME_REASON,
-    }
-
-
-def _safe_clone(value):
-    """``sklearn.clone`` for estimators, ``deepcopy`` for what clone refuses.
-
-    pysindy's ``CustomLibrary`` renames its constructor arguments, so ``clone`` fails on it.
-    """
-    try:
-        return clone(value, safe=False)
-    except (AttributeError, RuntimeError, TypeError):
-        return copy.deepcopy(value)
-
-
-def _short_repr(value) -> str:
-    try:
-        return repr(value)
-    except AttributeError:
-        return f"{type(value).__name__}(...)"
-
-
-def _nested_params(value) -> dict:
-    """``value.get_params()`` where it works (not on pysindy's ``CustomLibrary``)."""
-    if not hasattr(value, "get_params") or isinstance(value, type):
-        return {}
-    try:
-        return value.get_params(deep=True)
-    except (AttributeError, TypeError):
-        return {}
-
-
-def records_digest(records) -> str:
-    """Fingerprint of the records' values (and so of where they are cut)."""
-    digest = hashlib.sha1()
-    for u, z in records:
-        digest.update(np.ascontiguousarray(u, float).tobytes())
-        digest.update(np.ascontiguousarray(z, float).tobytes())
-    return digest.hexdigest()
-
-
-class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
+class GreyBoxSparseRegressor(FittedModel, RegressorMixin, BaseEstimator):
     r"""Physics model + sparse black-box correction, fitted on its multi-step simulation error.
 
     The model (Donati et al., eq. 2) is
@@ -462,6 +402,8 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
             where the data do not determine it.
         """
         _check_counts(self)
+        if sample_index is None:
+            check_fold_rows()
         return self._fit(u, z, sample_index, reference_only=False)
 
     def _fit(self, u, z, sample_index, reference_only: bool):
@@ -500,7 +442,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
             states = physics.state_names[: n_declared_states(physics)]
             features = list(states) + list(physics.input_names)
             n_rows = len(delta_states) + len(delta_outputs)
-            basis = compile_basis(self.library, features, n_rows, self.random_state)
+            basis = _compiled_library(self.library, features, n_rows, self.random_state)
         return basis, build_model(physics, basis, delta_states, delta_outputs)
 
     def _solve(self, physics, basis, model, records, reference_only=False):
@@ -520,6 +462,7 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
             SparseOptions(self.prune_tol, self.refit, reference_only),
             self._cached_reference(key := self._reference_key(physics, records), physics),
         )
+        outcome = self._judged(physics, basis, model, records, outcome)
         self._warn_if_unfinished(outcome.result)
         cache = (key, physics, self.library, outcome.reference)
         self._reference = None if outcome.reference is None else cache
@@ -561,6 +504,25 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
                 f"optax.adam(1e-2)), got {self.optimizer!r}."
             )
         return self.optimizer
+
+    def _judged(self, physics, basis, model, records, outcome):
+        """``outcome`` with ``converged`` false and the reason when its fit is no model
+        although the solver converged (`fit_problems`, `bound_reason`); a cost that is not
+        finite because of a dictionary term raises, naming the term."""
+        result, blocks = outcome.result, outcome.blocks
+        first = np.asarray(blocks["x0"])[np.asarray(outcome.segments.linked) == 0]
+        if not np.isfinite(result.cost):
+            _raise_for_features(physics, basis, blocks, records, first)
+            return outcome
+        if not result.converged:
+            return outcome
+        scale = np.asarray(outcome.weights.output_scale, float)
+        reason = fit_problems(model, blocks, records, first, scale, result.fit, self.horizon)
+        reason = reason or bound_reason(physics, blocks["theta"])
+        if reason is None:
+            return outcome
+        judged = result._replace(converged=False, message=f"{reason} (solver: {result.message})")
+        return outcome._replace(result=judged)
 
     def _warn_if_unfinished(self, result) -> None:
         if not np.isfinite(result.cost):
@@ -610,261 +572,31 @@ class GreyBoxSparseRegressor(RegressorMixin, BaseEstimator):
         for name, values in zip(names, evidence or (None,) * 4, strict=True):
             setattr(self, name, np.full(shape, np.nan) if values is None else np.asarray(values))
 
-    # ------------------------------------------------------------------ predict / score
-    def _fitted_model(self):
-        compiled = getattr(self, "_compiled", None)
-        if compiled is None:
-            compiled = self._compile(self.physics_)
-        return compiled[1]
 
-    def _fitted_cost_weights(self) -> CostWeights:
-        """The weights and scales of the fitted cost (numpy), to rebuild it."""
-        scales = {"output_scale": self.output_scale_, "state_scale": self._state_scale}
-        if self.coef_.size:
-            scales["penalty_scale"] = np.where(self.penalty_scale_ > 0, self.penalty_scale_, 1.0)
-        return CostWeights(
-            self.gamma, self.lam, self.nu, self.shooting_weight, self.l1_smoothing, **scales
-        )
-
-    def _fitted_blocks(self) -> dict:
-        blocks = {"theta": self.theta_}
-        if self.coef_.size:
-            blocks["omega"] = self.coef_
-        blocks.update(self.inner_params_)
-        return blocks
-
-    def _simulate_record(self, model, u, x0):
-        """States, outputs and correction terms of a free run from ``x0``
-        (`free_run_record`)."""
-        params = {k: to_device(v) for k, v in self._fitted_blocks().items()}
-        return free_run_record(model, params, x0, u)
-
-    def _initial_state(self, model, u, z_init, x0):
-        if x0 is not None:
-            x0 = np.asarray(x0, float).reshape(-1)
-            if x0.shape != self.x0_.shape or not np.all(np.isfinite(x0)):
-                raise ValueError(f"x0 must be {self.x0_.shape[0]} finite values, got {x0!r}.")
-            return x0
-        if z_init is None or len(z_init) == 0:
-            return self.x0_
-        n = len(z_init)
-        guess = initial_state_guess(self.x0_, self.physics_, u[0], z_init[0], self.parameters_)
-        return estimate_initial_state(
-            model, self._fitted_blocks(), u[:n], z_init, guess, np.ones_like(self.x0_, bool)
-        )
-
-    def predict(self, u, *, x0=None, z_init=None):
-        """Simulate the fitted model over the input sequence ``u``.
-
-        Parameters
-        ----------
-        u : array-like of shape (n_samples, n_inputs) or list of such arrays
-        x0 : array-like of shape (n_states,), default=None
-            Initial state. ``None`` uses ``z_init`` if given, else ``x0_``.
-        z_init : array-like of shape (n_init,) or (n_init, n_outputs), default=None
-            First measured outputs; the initial state is estimated from them with the
-            fitted parameters fixed. With a list of input records, a list with one entry
-            (or ``None``) per record.
-
-        Returns
-        -------
-        z_sim : ndarray of shape (n_samples,) or (n_samples, n_outputs), or list
-            A simulation that diverges gives non-finite values after the sample where it
-            does, with a [`DivergenceWarning`][sk_offwhite.DivergenceWarning] naming that sample.
-        """
-        if is_experiment_list(u):
-            starts = _per_record("z_init", z_init, len(u))
-            return [self.predict(ue, x0=x0, z_init=zi) for ue, zi in zip(u, starts, strict=True)]
-        outputs = self.simulate(u, x0=x0, z_init=z_init).outputs
-        return outputs.ravel() if self._z_was_1d else outputs
-
-    def simulate(self, u, *, x0=None, z_init=None) -> Bunch:
-        r"""Free-run simulation with everything a residual analysis needs.
-
-        Same arguments as `predict` (one record).
-
-        Returns
-        -------
-        result : sklearn.utils.Bunch
-            ``outputs`` (n_samples, n_outputs), ``states`` (n_samples, n_states) with
-            $\hat x_k$, ``correction`` (n_samples, n_states) with the black-box term
-            $S\delta(\hat x_k, u_k)$ added to each state update, and ``x0``.
-        """
-        check_is_fitted(self)
-        _check_feature_names(self, u, reset=False)
-        u = check_inputs(u)
-        self._check_widths(u.shape[1], reset=False)
-        if z_init is not None:
-            z_init = _checked_z_init(z_init, u.shape[0], self.n_outputs_)
-        with jax.enable_x64(True):
-            model = self._fitted_model()
-            start = self._initial_state(model, u, z_init, x0)
-            states, outputs, deltas = self._simulate_record(model, u, start)
-        _warn_if_diverged(outputs)
-        return Bunch(outputs=outputs, states=states, correction=deltas, x0=np.asarray(start))
-
-    def _score_window(self, n_samples: int) -> int:
-        if self.init_window is not None:
-            return min(self.init_window, n_samples - 1)
-        return min(50, n_samples // 5)
-
-    def score(self, u, z, sample_index=None, sample_weight=None):
-        """$R^2$ of the simulated output, after estimating each record's initial state.
-
-        The first ``init_window`` samples of every contiguous record (see ``sample_index``)
-        are used to estimate its initial state, as MATLAB's ``compare`` does, and are
-        excluded from the score. With ``init_window=0`` records start from ``x0_``. A
-        simulation that diverges scores ``-inf`` (with a ``RuntimeWarning``), so model
-        selection never picks it.
-
-        Parameters
-        ----------
-        u : array-like of shape (n_samples, n_inputs) or list of such arrays
-        z : array-like of shape (n_samples,) or (n_samples, n_outputs), or list
-        sample_index : array-like of shape (n_samples,), default=None
-            Original time index of each row; a jump starts a new record.
-        sample_weight : array-like of shape (n_samples,), default=None
-            Weights of the scored samples in $R^2$ (all rows of a list of records,
-            in order).
-
-        Returns
-        -------
-        score : float
-        """
-        check_is_fitted(self)
-        records = self._records(u, z, sample_index, reset=False)
-        measured, simulated, weights = [], [], []
-        for (u_r, z_r), w_r in zip(records, _record_weights(sample_weight, records), strict=True):
-            window = self._score_window(u_r.shape[0])
-            with warnings.catch_warnings():  # one warning below, for the whole score
-                warnings.simplefilter("ignore", DivergenceWarning)
-                z_sim = self.predict(u_r, z_init=z_r[:window] if window else None)
-            measured.append(z_r[window:])
-            simulated.append(np.asarray(z_sim).reshape(len(u_r), -1)[window:])
-            weights.append(w_r[window:])
-        simulated = np.concatenate(simulated)
-        if not np.all(np.isfinite(simulated)):
-            warnings.warn(
-                "The simulation diverged (non-finite outputs) on the scored data; score is -inf.",
-                RuntimeWarning,
-                stacklevel=2,
-            )
-            return -np.inf
-        weight = None if sample_weight is None else np.concatenate(weights)
-        return r2_score(np.concatenate(measured), simulated, sample_weight=weight)
-
-    # ------------------------------------------------------------------ read-out
-    def equations(self, precision: int = 4) -> list[str]:
-        """Identified state equations, one string per state (corrections written out), then
-        one per corrected output."""
-        check_is_fitted(self)
-        rows = (self.delta_states_, self.delta_outputs_)
-        return format_equations(self.physics_, self.coef_, self.feature_names_, rows, precision)
-
-    def print(self, precision: int = 4) -> None:
-        """Print the fitted parameters, initial state and equations (pysindy-style)."""
-        for line in self.equations(precision):
-            print(line)
-        for name, value in self.parameters_.items():
-            print(f"  {name} = {value:.{precision}g}")
-        x0 = ", ".join(
-            f"{n}={v:.{precision}g}"
-            for n, v in zip(self.physics_.state_names, self.x0_, strict=True)
-        )
-        print(f"  x0: {x0}")
-
-
-def _indices(given, size: int, name: str, allow_empty: bool) -> tuple[int, ...]:
-    """``given`` as a tuple of distinct integer indices in ``[0, size)``, else a
-    ``ValueError`` naming ``name``."""
-    values = np.atleast_1d(np.asarray(given))
-    usable = values.ndim == 1 and (values.dtype.kind in "iu" or values.size == 0)
-    indices = tuple(int(i) for i in values) if usable else None
-    if (
-        indices is None
-        or (not indices and not allow_empty)
-        or not all(0 <= i < size for i in indices)
-        or len(set(indices)) != len(indices)
-    ):
-        raise ValueError(f"{name} must be distinct integer indices in [0, {size}), got {given!r}.")
-    return indices
-
-
-def _check_counts(est: GreyBoxSparseRegressor) -> None:
-    """Integer settings must not be booleans (``True`` passes as the integer 1)."""
-    for name in ("horizon", "max_iter", "init_window"):
-        if isinstance(getattr(est, name), bool | np.bool_):
-            raise ValueError(f"{name} must be an integer, got {getattr(est, name)!r}.")
-
-
-class DivergenceWarning(RuntimeWarning):
-    """A simulation of the fitted model left the finite numbers."""
-
-
-class RunawayParameterWarning(UserWarning):
-    """A fitted parameter ran orders of magnitude away from its declared start, where the
-    data no longer determine it (`runaway_parameters`)."""
-
-
-def _warn_if_runaway(physics, theta) -> None:
-    for name, start, fitted in runaway_parameters(physics, theta):
-        warnings.warn(
-            f"Parameter {name!r} ran from {start:.3g} to {fitted:.3g} ({abs(fitted / start):.1e} "
-            "times its start): the simulation hardly depends on it there (a level never "
-            "reached, a time constant so long that its term vanishes), so the data do not "
-            "determine it; fix it, bound it, or drop its term "
-            "(sk_offwhite.certify.identifiability names such directions).",
-            RunawayParameterWarning,
-            stacklevel=5,  # the caller of fit (through scikit-learn's fit context)
-        )
-
-
-def _warn_if_diverged(outputs: np.ndarray) -> None:
-    finite = np.all(np.isfinite(outputs), axis=1)
-    if not np.all(finite):
-        first = int(np.argmin(finite))
-        warnings.warn(
-            f"The simulation diverged: its outputs are not finite from sample {first} of "
-            f"{len(finite)} on (an unstable fitted model, or inputs outside the fitted range).",
-            DivergenceWarning,
-            stacklevel=3,
-        )
-
-
-def _checked_z_init(z_init, n_samples: int, n_outputs: int) -> np.ndarray:
-    """``z_init`` as ``(n_init, n_outputs)`` finite floats covering at most the record."""
-    if is_experiment_list(z_init):
-        raise ValueError("z_init is a list, but u is one record: pass one array.")
-    values = np.asarray(z_init, float)
-    if values.size == 0:  # no initial window: the fitted initial state
-        return values.reshape(0, n_outputs)
-    values = values.reshape(len(values), -1) if values.ndim else values.reshape(1, -1)
-    if values.shape[1] != n_outputs or len(values) > n_samples:
+def _compiled_library(library, features, n_rows: int, random_state):
+    """[`compile_basis`][sk_offwhite.compile_basis] of the estimator's ``library``, its errors
+    naming the argument (a library that cannot be compiled at all is a ``ValueError``)."""
+    try:
+        return compile_basis(library, features, n_rows, random_state)
+    except (TypeError, ValueError) as error:
+        raise type(error)(f"library: {error}") from error
+    except Exception as error:  # noqa: BLE001 - pysindy's and numpy's own failures
         raise ValueError(
-            f"z_init must have shape (n_init, {n_outputs}) with n_init <= {n_samples} (the "
-            f"length of u), got {np.shape(z_init)}."
-        )
-    if not np.all(np.isfinite(values)):
-        raise ValueError("z_init must be finite: it holds NaN or inf.")
-    return values
+            f"library: {type(library).__name__} cannot be compiled into features of "
+            f"{list(features)} ({type(error).__name__}: {error})."
+        ) from error
 
 
-def _record_weights(sample_weight, records: list[tuple]) -> list[np.ndarray]:
-    """``sample_weight`` cut into the records' rows (ones where it is ``None``)."""
-    lengths = [u.shape[0] for u, _ in records]
-    rows = np.empty((sum(lengths), 0))
-    weights = _check_sample_weight(sample_weight, rows, ensure_non_negative=True)
-    return np.split(weights, np.cumsum(lengths)[:-1])
-
-
-def _per_record(name: str, values, n_records: int) -> list:
-    """``values`` for each of ``n_records`` records: ``None`` for all, or a list of them."""
-    if values is None:
-        return [None] * n_records
-    one_each = isinstance(values, list | tuple) and len(values) == n_records
-    if not (one_each and all(v is None or np.ndim(v) >= 1 for v in values)):
-        raise ValueError(
-            f"with {n_records} input records, {name} must be None or a list of {n_records} "
-            "arrays (one per record)."
-        )
-    return list(values)
+def _raise_for_features(physics, basis, blocks, records, first_states) -> None:
+    """Raise, naming the term, when a dictionary feature is not finite along the declared
+    physics' free run from the fit's point (what made the cost not finite)."""
+    if basis is None:
+        return
+    declared = build_model(physics, None, ())
+    params = {"theta": to_device(np.asarray(blocks["theta"], float))}
+    n_declared = n_declared_states(physics)
+    for (u, _), x0 in zip(records, first_states, strict=True):
+        states = free_run_record(declared, params, x0, u)[0][:, :n_declared]
+        problem = non_finite_feature(basis, states, u)
+        if problem:
+            raise ValueError(problem + ".")

@@ -38,8 +38,8 @@ class GreyBoxSparseRegressorCV(GreyBoxSparseRegressor):
     Parameters
     ----------
     physics, library, lam, nu, horizon
-        As [`GreyBoxSparseRegressor`][sk_offwhite.GreyBoxSparseRegressor]; ``library`` is
-        required.
+        As [`GreyBoxSparseRegressor`][sk_offwhite.GreyBoxSparseRegressor]; without a
+        ``library`` the physics is fitted alone (there is no weight to choose).
     gammas : array-like, default=None
         The grid of $\gamma$; ``None``: ``n_gammas`` values from $\gamma_{max}$ of the record
         down to ``eps`` times it ([`gamma_grid`][sk_offwhite.gamma_grid]).
@@ -61,8 +61,8 @@ lm_scaling, optimizer, max_iter, tol, init_window, warm_start, verbose, random_s
 
     Attributes
     ----------
-    gamma_ : float
-        The chosen $\gamma$ (``gamma`` reads it).
+    gamma_ : float or None
+        The chosen $\gamma$ (``gamma`` reads it; ``None`` without a library).
     gammas_ : ndarray
         The grid, up to where the path ended.
     path_ : GammaPath
@@ -142,19 +142,25 @@ lm_scaling, optimizer, max_iter, tol, init_window, warm_start, verbose, random_s
         self : GreyBoxSparseRegressorCV
         """
         self._validate_params()
-        if self.library is None:
-            raise ValueError("GreyBoxSparseRegressorCV needs a library (a dictionary of terms).")
         base = GreyBoxSparseRegressor(**{name: getattr(self, name) for name in _SHARED})
+        if self.library is None:  # the physics alone: no weight to choose
+            self._adopt(base.fit(u, z, sample_index=sample_index))
+            self.path_, self.gamma_, self.gammas_, self.cv_results_ = None, None, None, {}
+            return self
         path = fit_gamma_path(
             base, u, z, self.gammas, n_gammas=self.n_gammas, eps=self.eps, cv=self.cv,
             one_standard_error=self.one_standard_error, init_window=self.init_window,
             sample_index=sample_index, n_jobs=self.n_jobs,
         )  # fmt: skip
-        fitted = {k: v for k, v in vars(base).items() if k.endswith("_") or k.startswith("_")}
-        fitted.pop("_metadata_request", None)
-        vars(self).update(fitted)
+        self._adopt(base)
         self._store_path(path)
         return self
+
+    def _adopt(self, fitted: GreyBoxSparseRegressor) -> None:
+        """Take over the fitted state of ``fitted`` (its attributes and caches)."""
+        state = {k: v for k, v in vars(fitted).items() if k.endswith("_") or k.startswith("_")}
+        state.pop("_metadata_request", None)
+        vars(self).update(state)
 
     def _store_path(self, path: GammaPath) -> None:
         self.path_ = path

@@ -14,11 +14,17 @@ from __future__ import annotations
 import copy
 import warnings
 from dataclasses import dataclass, field
+from numbers import Integral, Real
 
 import numpy as np
 from joblib import effective_n_jobs
 from sklearn.base import clone
 from sklearn.model_selection import KFold, check_cv
+from sklearn.utils._param_validation import (
+    Interval,
+    InvalidParameterError,
+    validate_parameter_constraints,
+)
 
 from ._estimator import GreyBoxSparseRegressor
 from .model._equations import correction_rows
@@ -290,7 +296,10 @@ def _splits(cv, n_samples: int) -> list[tuple[np.ndarray, np.ndarray]]:
     splitter = check_cv(cv)
     if isinstance(splitter, KFold) and splitter.shuffle:
         raise ValueError("cv must keep time order: KFold(shuffle=True) mixes the samples.")
-    return list(splitter.split(np.zeros((n_samples, 1))))
+    try:
+        return list(splitter.split(np.zeros((n_samples, 1))))
+    except ValueError as error:
+        raise ValueError(f"cv: {error}") from error
 
 
 def _whole_record_path(est, u, z, gammas, sample_index, min_improvement):
@@ -464,12 +473,15 @@ def fit_gamma_path(
     -------
     GammaPath
     """
-    if estimator.library is None:
-        raise ValueError("fit_gamma_path needs an estimator with a library (a correction).")
-    estimator._validate_params()
-    if not 0 <= min_improvement < 1:
-        raise ValueError(f"min_improvement must be in [0, 1), got {min_improvement!r}.")
+    _check_path_arguments(
+        estimator, gammas=gammas, n_gammas=n_gammas, eps=eps, cv=cv,
+        one_standard_error=one_standard_error, init_window=init_window, n_jobs=n_jobs,
+        min_improvement=min_improvement, stop_at_divergence=stop_at_divergence,
+        restart=restart,
+    )  # fmt: skip
     u_arr, z_arr = np.asarray(u, float), np.asarray(z, float)
+    if cv is not None:
+        _splits(cv, len(u_arr))  # a splitter that cannot cut the record fails before any fit
     if gammas is None:
         values, gamma_max = _grid(estimator, u_arr, z_arr, n_gammas, eps, sample_index)
     else:
@@ -529,6 +541,44 @@ def fit_gamma_path(
         cv_rmse,
         start,
     )
+
+
+PATH_CONSTRAINTS: dict = {
+    "gammas": ["array-like", None],
+    "n_gammas": [Interval(Integral, 1, None, closed="left")],
+    "eps": [Interval(Real, 0, 1, closed="neither")],
+    "cv": ["cv_object", None],
+    "one_standard_error": ["boolean"],
+    "init_window": [Interval(Integral, 0, None, closed="left"), None],
+    "n_jobs": [Integral, None],
+    "min_improvement": [Interval(Real, 0, 1, closed="left")],
+    "stop_at_divergence": ["boolean"],
+    "restart": ["boolean", None],
+}
+"""What each argument of [`fit_gamma_path`][sk_offwhite.fit_gamma_path] may be."""
+
+
+def _check_path_arguments(estimator, **arguments) -> None:
+    """Every argument of the path checked before its first fit, each error naming it."""
+    if not isinstance(estimator, GreyBoxSparseRegressor):
+        raise TypeError(
+            f"estimator must be a GreyBoxSparseRegressor, got {type(estimator).__name__}."
+        )
+    if estimator.library is None:
+        raise ValueError("fit_gamma_path needs an estimator with a library (a correction).")
+    estimator._validate_params()
+    validate_parameter_constraints(PATH_CONSTRAINTS, arguments, "fit_gamma_path")
+    for name in ("n_gammas", "init_window", "n_jobs"):
+        if isinstance(arguments[name], bool | np.bool_):
+            raise InvalidParameterError(
+                f"The {name!r} parameter of fit_gamma_path must be an integer, got "
+                f"{arguments[name]!r}."
+            )
+    if arguments["gammas"] is not None:
+        try:
+            _check_gammas(arguments["gammas"])
+        except (TypeError, ValueError) as error:
+            raise InvalidParameterError(f"gammas: {error}") from error
 
 
 def _grid(estimator, u, z, n_gammas: int, eps: float, sample_index) -> tuple[np.ndarray, float]:

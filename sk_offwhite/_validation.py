@@ -21,13 +21,25 @@ def is_experiment_list(data) -> bool:
     )
 
 
+def _named(name: str, values, **options) -> np.ndarray:
+    """``check_array(values, **options)`` whose errors begin with the argument's ``name``
+    (scikit-learn's messages do not always say which array they mean)."""
+    try:
+        return check_array(values, input_name=name, **options)
+    except (TypeError, ValueError) as error:
+        message = str(error)
+        if message.startswith(f"{name}:") or message.startswith(f"{name} "):
+            raise
+        raise type(error)(f"{name}: {message}") from error
+
+
 def _check_one(name: str, values, ensure_2d: bool = True) -> np.ndarray:
-    values = check_array(
+    values = _named(
+        name,
         values,
         dtype=np.float64,
         ensure_2d=ensure_2d,
         ensure_all_finite=True,
-        input_name=name,
         ensure_min_samples=1,
         copy=False,
     )
@@ -36,7 +48,7 @@ def _check_one(name: str, values, ensure_2d: bool = True) -> np.ndarray:
 
 def check_inputs(u) -> np.ndarray:
     """Validated input array ``u`` of shape ``(n_samples, n_inputs)``, finite, float64."""
-    return check_array(u, dtype=np.float64, ensure_all_finite=True, input_name="u")
+    return _named("u", u, dtype=np.float64, ensure_all_finite=True)
 
 
 def check_input_width(estimator, n_inputs: int) -> None:
@@ -56,7 +68,7 @@ def check_pair(u, z) -> tuple[np.ndarray, np.ndarray]:
             "(z holds the measured outputs)."
         )
     u = check_inputs(u)
-    z = check_array(z, dtype=np.float64, ensure_2d=False, ensure_all_finite=True, input_name="z")
+    z = _named("z", z, dtype=np.float64, ensure_2d=False, ensure_all_finite=True)
     if z.ndim > 2:
         raise ValueError(f"z must be 1-D or 2-D, got an array of shape {z.shape}.")
     if u.shape[0] != z.shape[0]:
@@ -65,7 +77,13 @@ def check_pair(u, z) -> tuple[np.ndarray, np.ndarray]:
 
 
 def check_record(u, z) -> tuple[np.ndarray, np.ndarray]:
-    """`check_pair` with ``z`` as a 2-D array ``(n_samples, n_outputs)``."""
+    """`check_pair` with ``z`` as a 2-D array ``(n_samples, n_outputs)``: one record (a
+    list of records is refused, naming it)."""
+    if is_experiment_list(u) or is_experiment_list(z):
+        raise ValueError(
+            "u and z must be one record here (2-D arrays), not a list of records: fit each "
+            "record apart, or join records that follow each other."
+        )
     u, z = check_pair(u, z)
     return u, z.reshape(z.shape[0], -1)
 

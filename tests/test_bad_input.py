@@ -162,10 +162,10 @@ def test_certificates_need_a_fitted_estimator(data):
 @pytest.mark.parametrize(
     ("kwargs", "message"),
     [
-        ({"gammas": (-1.0, 1.0)}, "gammas must be None or finite values >= 0"),
-        ({"gammas": ()}, "gammas must be None or finite values >= 0"),
-        ({"n_folds": 1}, "n_folds must be an integer >= 2"),
-        ({"n_folds": 2.5}, "n_folds must be an integer >= 2"),
+        ({"gammas": (-1.0, 1.0)}, "'gammas' parameter of LoopSettings"),
+        ({"gammas": ()}, "'gammas' parameter of LoopSettings"),
+        ({"n_folds": 1}, "'n_folds' parameter of LoopSettings"),
+        ({"n_folds": 2.5}, "'n_folds' parameter of LoopSettings"),
     ],
 )
 def test_loop_settings_are_checked(kwargs, message):

@@ -104,7 +104,7 @@ def test_forward_gives_the_folds_of_time_series_split(gap):
 
 def test_repr_and_number_of_splits():
     cv = SequenceSplit(4, train="rest", gap=1)
-    assert repr(cv) == "SequenceSplit(gap=1, n_splits=4, train='rest')"
+    assert repr(cv) == "SequenceSplit(gap=1, n_splits=4, test_size=None, train='rest')"
     assert cv.get_n_splits() == 4
 
 

@@ -22,7 +22,8 @@ from typing import NamedTuple
 import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
-from .._estimator import GreyBoxSparseRegressor, records_digest
+from .._estimator import GreyBoxSparseRegressor
+from .._estimator_checks import records_digest
 from ..fitting._problem import make_problem
 from ..model._equations import correction_rows
 from ..simulation._layout import Layout

@@ -35,9 +35,8 @@ from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clon
 from sklearn.utils._param_validation import HasMethods, InvalidParameterError
 from sklearn.utils.validation import check_is_fitted
 
-from .._estimator import GreyBoxSparseRegressor
+from .._estimator import GreyBoxSparseRegressor, _compiled_library
 from .._validation import check_record
-from ..dictionaries import compile_basis
 from ..effects import Effect, augment
 from ..effects._hidden import n_declared_states
 from ..model import PhysicsModel
@@ -168,7 +167,8 @@ class EffectSearchCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         The declared physics, its dictionary (``library``) and the settings every fit of the
         search uses: ``horizon`` (the multiple-shooting window of each fit's first stage,
         refined on the whole record; ``None``: the whole record at once), ``max_iter``,
-        ``init_window`` (``None``: 50), ``lm_scaling`` and ``delta_states``.
+        ``init_window`` (``None``: ``min(50, n_samples // 5)``), ``lm_scaling`` and
+        ``delta_states``.
     cv : int or SequenceSplit, default=3
         How every choice is scored: an int is that many contiguous blocks held out in turn
         (``SequenceSplit(cv, train="rest")``, each fitted on the rest as separate records);
@@ -281,12 +281,14 @@ one_standard_error, release_programs, fit_output_delta, output_bumps
         cv = n_folds if selection == "cv" else SequenceSplit(1, train="forward", test_size=fraction)
         return cls(estimator, cv=cv, **own)
 
-    def settings(self) -> LoopSettings:
-        """The [`LoopSettings`][sk_offwhite.loop.LoopSettings] of this search (validated: a
-        wrong value raises at once, naming it)."""
+    def settings(self, n_samples: int | None = None) -> LoopSettings:
+        """The [`LoopSettings`][sk_offwhite.loop.LoopSettings] of this search on a record of
+        ``n_samples`` (validated: a wrong value raises at once, naming it). An estimator's
+        ``init_window=None`` is its own rule, ``min(50, n_samples // 5)``."""
         est = self.estimator
         fit = {name: getattr(est, name) for name in _ESTIMATOR_SETTINGS}
-        fit["init_window"] = 50 if fit["init_window"] is None else fit["init_window"]
+        if fit["init_window"] is None:
+            fit["init_window"] = 50 if n_samples is None else min(50, n_samples // 5)
         fit["delta_states"] = None if fit["delta_states"] is None else tuple(fit["delta_states"])
         own = {
             name: getattr(self, name)
@@ -306,9 +308,10 @@ one_standard_error, release_programs, fit_output_delta, output_bumps
         -------
         self : EffectSearchCV
         """
-        settings = self.settings()
-        physics, library = _checked_estimator(self.estimator)
+        self._z_was_1d = np.ndim(z) == 1
         u, z = check_record(u, z)
+        settings = self.settings(len(u))
+        physics, library = _checked_estimator(self.estimator, u.shape[1], z.shape[1])
         search = Search(u, z, settings)
         given = None if _is_auto(self.candidates) else _given(self.candidates)
         self.result_ = run_loop(search, physics, library, given)
@@ -332,7 +335,8 @@ one_standard_error, release_programs, fit_output_delta, output_bumps
         """The chosen model's simulation of ``u`` (see
         [`GreyBoxSparseRegressor.predict`][sk_offwhite.GreyBoxSparseRegressor.predict])."""
         check_is_fitted(self)
-        return self.best_estimator_.predict(u, **kwargs)
+        z = self.best_estimator_.predict(u, **kwargs)
+        return np.ravel(z) if getattr(self, "_z_was_1d", False) and np.ndim(z) == 2 else z
 
     def score(self, u, z, **kwargs):
         """The chosen model's $R^2$ of the simulation (see
@@ -355,7 +359,7 @@ one_standard_error, release_programs, fit_output_delta, output_bumps
 def _selection(cv) -> dict:
     """The loop's ``selection``, ``n_folds`` and ``tail_fraction`` of an
     [`EffectSearchCV`][sk_offwhite.loop.EffectSearchCV]'s ``cv``."""
-    if isinstance(cv, Integral) and not isinstance(cv, bool):
+    if isinstance(cv, Integral) and not isinstance(cv, bool) and cv >= 2:
         return {"selection": "cv", "n_folds": int(cv)}
     if isinstance(cv, SequenceSplit) and cv.train == "rest" and cv.gap == 0:
         return {"selection": "cv", "n_folds": cv.n_splits}
@@ -369,14 +373,17 @@ def _selection(cv) -> dict:
     )
 
 
-def _checked_estimator(estimator):
+def _checked_estimator(estimator, n_inputs: int, n_outputs: int):
     """``(physics, library)`` of the search's estimator, checked before any fit: a
-    physics model, and a dictionary that compiles on its states and inputs."""
+    physics model (``None``: the linear black box of one state per output), and a
+    dictionary that compiles on its states and inputs."""
     if not isinstance(estimator, GreyBoxSparseRegressor):
         raise TypeError(
             f"estimator must be a GreyBoxSparseRegressor, got {type(estimator).__name__}."
         )
     physics, library = estimator.physics, estimator.library
+    if physics is None:
+        physics = PhysicsModel.linear(n_inputs, n_outputs)
     if not isinstance(physics, PhysicsModel):
         raise TypeError(
             "the estimator's physics must be a PhysicsModel (the declared physics the search "
@@ -384,7 +391,7 @@ def _checked_estimator(estimator):
         )
     if library is not None:
         states = physics.state_names[: n_declared_states(physics)]
-        compile_basis(library, list(states) + list(physics.input_names), 1)
+        _compiled_library(library, list(states) + list(physics.input_names), 1, None)
     return physics, library
 
 

@@ -13,7 +13,8 @@ import warnings
 
 import numpy as np
 
-from .._estimator import GreyBoxSparseRegressor, RunawayParameterWarning
+from .._estimator import GreyBoxSparseRegressor
+from .._warnings import RunawayParameterWarning
 from ..model import Parameter
 from ._search import Search
 

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..simulation._rollout import take
 from ._kinds import check_kinds
+from ._probe import out_of_range_reads
 
 __all__ = ["DiscretizedStep", "MeasuredStates", "Parameter", "PhysicsModel", "measured_states"]
 
@@ -54,6 +55,12 @@ class Parameter:
     relaxable: bool = False
 
     def __post_init__(self):
+        _check_real("Parameter value", self.value)
+        for flag in ("fixed", "relaxable"):
+            if not isinstance(getattr(self, flag), bool | np.bool_):
+                raise TypeError(
+                    f"Parameter {flag} must be True or False, got {getattr(self, flag)!r}."
+                )
         lower, upper = _bound_pair(self.bounds)
         if not math.isfinite(float(self.value)):
             raise ValueError(f"Parameter value must be finite, got {self.value!r}.")
@@ -65,12 +72,23 @@ class Parameter:
             raise ValueError("Parameter relaxable=True applies to a fixed parameter (fixed=True).")
 
 
+def _check_real(argument: str, value) -> float:
+    """``value`` as a float, or a ``TypeError`` naming ``argument`` (a string, a boolean, a
+    complex number or a container is no real number)."""
+    kind = np.asarray(value).dtype.kind if not isinstance(value, str | bytes) else "U"
+    if kind not in "iuf" or np.ndim(value) != 0:
+        raise TypeError(f"{argument} must be a real number, got {value!r}.")
+    return float(value)
+
+
 def _bound_pair(bounds) -> tuple[float, float]:
     """Return ``bounds`` as floats with ``None`` mapped to -inf / +inf."""
-    if len(bounds) != 2:
+    if isinstance(bounds, str) or not hasattr(bounds, "__len__") or len(bounds) != 2:
         raise ValueError(f"bounds must be a (lower, upper) pair, got {bounds!r}.")
-    lower = -np.inf if bounds[0] is None else float(bounds[0])
-    upper = np.inf if bounds[1] is None else float(bounds[1])
+    lower = -np.inf if bounds[0] is None else _check_real("a lower bound", bounds[0])
+    upper = np.inf if bounds[1] is None else _check_real("an upper bound", bounds[1])
+    if np.isnan(lower) or np.isnan(upper):
+        raise ValueError(f"bounds must not be NaN, got {bounds!r}.")
     return lower, upper
 
 
@@ -93,6 +111,8 @@ def _checked_bounds(argument: str, bounds, x0) -> tuple[float, float]:
 
 def _per_state(argument: str, values, n_states: int, dtype) -> np.ndarray:
     """``values`` as one entry per state (a scalar applies to all)."""
+    if dtype is bool and np.asarray(values).dtype.kind != "b":
+        raise TypeError(f"{argument} must be True, False or one boolean per state, got {values!r}.")
     array = np.asarray(values, dtype=dtype)
     if array.ndim > 1 or array.size not in (1, n_states):
         raise ValueError(
@@ -131,7 +151,12 @@ class MeasuredStates:
     """Output map ``z = x[indices]`` (a picklable callable)."""
 
     def __init__(self, indices: Sequence[int], n_states: int):
-        self.indices = tuple(int(i) for i in np.atleast_1d(indices))
+        values = np.atleast_1d(np.asarray(indices))
+        if values.dtype.kind not in "iu" or values.ndim != 1:
+            raise ValueError(
+                f"output must be a callable or state indices (integers), got {indices!r}."
+            )
+        self.indices = tuple(int(i) for i in values)
         if not self.indices or not all(0 <= i < n_states for i in self.indices):
             raise ValueError(
                 f"output state indices {self.indices} out of range for {n_states} states."
@@ -229,11 +254,12 @@ class PhysicsModel:
         self.input_names = _check_names(
             "input_names", input_names or _default_names("u", self.n_inputs), self.n_inputs
         )
-        self.output_names = tuple(output_names) if output_names is not None else None
+        self.output_names = _output_names(output_names, self.output, self.n_states)
         self.inequality = inequality
         self.equality = equality
         self.state_kinds = check_kinds("state_kinds", state_kinds, self.n_states)
         self.input_kinds = check_kinds("input_kinds", input_kinds, self.n_inputs)
+        _check_reads(self)
 
     @classmethod
     def from_ode(
@@ -255,8 +281,9 @@ class PhysicsModel:
         ODE is integrated with ``n_substeps`` steps of explicit Euler or classical RK4, as
         MATLAB ``idnlgrey`` users expect from a continuous-time grey-box model.
         """
-        if not sampling_time > 0:
-            raise ValueError(f"sampling_time must be positive, got {sampling_time!r}.")
+        sampling_time = _check_real("sampling_time", sampling_time)
+        if not (math.isfinite(sampling_time) and sampling_time > 0):
+            raise ValueError(f"sampling_time must be finite and positive, got {sampling_time!r}.")
         step = DiscretizedStep(rhs, float(sampling_time), method, n_substeps)
         model = cls(step, output, parameters, n_states, n_inputs, **kwargs)
         model.rhs, model.sampling_time, model.method = rhs, float(sampling_time), method
@@ -278,7 +305,10 @@ class PhysicsModel:
     def _initial_state(self, x0) -> np.ndarray:
         if x0 is None:
             return np.zeros(self.n_states)
-        x0 = np.asarray(x0, dtype=float).reshape(-1)
+        try:
+            x0 = np.asarray(x0, dtype=float).reshape(-1)
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"x0 must be {self.n_states} finite values, got {x0!r}.") from error
         if x0.shape != (self.n_states,) or not np.all(np.isfinite(x0)):
             raise ValueError(f"x0 must be {self.n_states} finite values, got {x0!r}.")
         return x0
@@ -323,6 +353,35 @@ class PhysicsModel:
             f"PhysicsModel(step={step_name}, n_states={self.n_states}, "
             f"n_inputs={self.n_inputs}, parameters={{{params}}})"
         )
+
+
+def _output_names(names, output, n_states: int) -> tuple[str, ...] | None:
+    """``output_names`` as a tuple, one per output when the output map reads states."""
+    if names is None:
+        return None
+    names = tuple(str(name) for name in names)
+    indices = measured_states(output)
+    if indices is not None and len(names) != len(indices):
+        raise ValueError(
+            f"output_names must have one name per output ({len(indices)}), got {len(names)}."
+        )
+    return names
+
+
+def _check_reads(model: PhysicsModel) -> None:
+    """Refuse a step or output map that reads an element past the end of ``x`` or ``u``,
+    which JAX would silently clamp to the last one (`out_of_range_reads`)."""
+    x, u = np.zeros(model.n_states), np.zeros(model.n_inputs)
+    theta = {name: p.value for name, p in model.parameters.items()}
+    for name, function in (("step", model.step), ("output", model.output)):
+        reads = sorted(set(out_of_range_reads(function, x, u, theta)))
+        if reads:
+            shown = ", ".join(f"element {r.index} of a length-{r.length} array" for r in reads)
+            raise ValueError(
+                f"physics {name} reads {shown}, past its end; with n_states={model.n_states} "
+                f"and n_inputs={model.n_inputs} check the indices into x and u (JAX would "
+                "read the last element instead, silently)."
+            )
 
 
 def _positive_int(argument: str, value, allow_zero: bool = False) -> int:

@@ -11,6 +11,7 @@ that ``fit`` and ``score`` receive.
 
 from __future__ import annotations
 
+import sys
 import warnings
 from numbers import Integral, Real
 
@@ -24,7 +25,13 @@ from sklearn.utils._param_validation import (
 )
 from sklearn.utils.validation import _num_samples
 
-__all__ = ["SequenceSplit", "SequenceWarning", "check_sample_index", "warn_if_fragmented"]
+__all__ = [
+    "SequenceSplit",
+    "SequenceWarning",
+    "check_fold_rows",
+    "check_sample_index",
+    "warn_if_fragmented",
+]
 
 _MIN_RUN = 2  # rows a record needs to hold one transition
 
@@ -288,4 +295,38 @@ def warn_if_fragmented(records: list[tuple], stacklevel: int = 2) -> None:
         "sequences this way; use sk_offwhite.SequenceSplit, or KFold without shuffle.",
         SequenceWarning,
         stacklevel=stacklevel + 1,
+    )
+
+
+_SEARCH_FRAMES = ("_fit_and_score", "_fit_and_predict")
+"""scikit-learn's functions that fit one fold of a search or a cross-validation (their
+``train`` and ``fit_params`` say which rows the estimator receives and with what)."""
+
+
+def check_fold_rows(max_depth: int = 40) -> None:
+    """Refuse a fit that is a fold of a scikit-learn search or cross-validation whose
+    training rows are not one contiguous run and that receives no ``sample_index``: the
+    estimator would simulate through the hole left by the held-out block, and the search
+    would rank its models by that error. Read from the caller's frames, so it works for any
+    splitter; outside such a fold it does nothing."""
+    frame = sys._getframe(1)
+    for _ in range(max_depth):
+        if frame is None:
+            return
+        if frame.f_code.co_name in _SEARCH_FRAMES and "train" in frame.f_locals:
+            _check_fold(frame.f_locals["train"], frame.f_locals.get("fit_params") or {})
+            return
+        frame = frame.f_back
+
+
+def _check_fold(train, fit_params: dict) -> None:
+    rows = np.asarray(train).reshape(-1)
+    if "sample_index" in fit_params or rows.size < 2 or np.all(np.diff(rows) == 1):
+        return
+    runs = int(np.sum(np.diff(rows) != 1)) + 1
+    raise ValueError(
+        f"this cross-validation fold trains on {runs} separate runs of rows, but fit got no "
+        "sample_index: the runs would be simulated as one record. Pass "
+        "sample_index=np.arange(n_samples) to the search's fit (it is cut with the rows), or "
+        "use sk_offwhite.SequenceSplit(n_splits), whose training rows are one run."
     )
