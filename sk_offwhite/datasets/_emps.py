@@ -29,6 +29,9 @@ RAW_SAMPLING_TIME = 1e-3
 DEFAULT_DECIMATION = 10
 """Decimation of [load_emps][sk_offwhite.datasets.load_emps]: 100 Hz records."""
 
+SAMPLING_TIME = DEFAULT_DECIMATION * RAW_SAMPLING_TIME
+"""Sampling time of the records at the default decimation, in seconds (0.01 s: 100 Hz)."""
+
 INIT_DURATION = 0.02
 """The protocol's initialisation window, in seconds (20 samples at 1 kHz)."""
 
@@ -254,7 +257,7 @@ def emps_physics(
     mass: float = 50.0,
     viscous_friction: float = 100.0,
     *,
-    sampling_time: float = DEFAULT_DECIMATION * RAW_SAMPLING_TIME,
+    sampling_time: float = SAMPLING_TIME,
     x0: Sequence[float] | None = None,
 ) -> PhysicsModel:
     """The textbook model of the EMPS a user would declare: a mass with viscous friction.
@@ -309,7 +312,7 @@ def emps_reference_physics(
     parameters: Mapping[str, float] | None = None,
     *,
     velocity_scale: float = VELOCITY_SCALE,
-    sampling_time: float = DEFAULT_DECIMATION * RAW_SAMPLING_TIME,
+    sampling_time: float = SAMPLING_TIME,
     x0: Sequence[float] | None = None,
 ) -> PhysicsModel:
     """The benchmark's reference model of the EMPS, with a smooth sign.
