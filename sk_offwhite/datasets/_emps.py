@@ -14,7 +14,7 @@ import jax.numpy as jnp
 import numpy as np
 from sklearn.utils import Bunch
 
-from sk_offwhite._physics import Parameter, PhysicsModel
+from sk_offwhite import Parameter, PhysicsModel
 from sk_offwhite.datasets._packed import read_packed
 
 __all__ = [
