@@ -1,9 +1,12 @@
-"""Data sets: the measured Cascaded Tanks benchmark and synthetic systems with undeclared effects.
+"""Data sets: measured benchmarks and synthetic systems with undeclared effects.
 
-``load_cascaded_tanks`` returns the benchmark records and ``cascaded_tanks_physics`` the
-physical model of its eq. (21). The ``make_*`` generators simulate systems whose declared
-physics misses one effect (the ``hidden_effect`` of the returned Bunch), for checking that a
-sparse black-box correction finds what the physics is missing.
+``load_cascaded_tanks`` returns the Cascaded Tanks records and ``cascaded_tanks_physics`` the
+physical model of its eq. (21); ``load_emps`` and ``load_silverbox`` return the EMPS and
+Silverbox records, ``emps_physics`` and ``silverbox_physics`` the textbook models a user would
+declare for them and ``emps_reference_physics`` the EMPS benchmark's reference law. The
+``make_*`` generators simulate systems whose declared physics misses one effect (the
+``hidden_effect`` of the returned Bunch), for checking that a sparse black-box correction finds
+what the physics is missing.
 """
 
 from sk_offwhite.datasets._backlash import make_backlash_servo, play
@@ -14,6 +17,7 @@ from sk_offwhite.datasets._cascaded_tanks import (
 )
 from sk_offwhite.datasets._coupling import make_clearance_coupling
 from sk_offwhite.datasets._electrical import make_diode_rc
+from sk_offwhite.datasets._emps import emps_physics, emps_reference_physics, load_emps
 from sk_offwhite.datasets._lag import (
     lagged_command,
     make_delayed_drive,
@@ -35,6 +39,7 @@ from sk_offwhite.datasets._sensor import (
     sensor_reading,
     stepped_reading,
 )
+from sk_offwhite.datasets._silverbox import load_silverbox, silverbox_physics
 from sk_offwhite.datasets._synthetic import (
     make_cascaded_tanks,
     make_friction_oscillator,
@@ -50,9 +55,13 @@ from sk_offwhite.effects._lags import delayed_command
 __all__ = [
     "cascaded_tanks_physics",
     "delayed_command",
+    "emps_physics",
+    "emps_reference_physics",
     "lagged_command",
     "lagged_reading",
     "load_cascaded_tanks",
+    "load_emps",
+    "load_silverbox",
     "make_backlash_servo",
     "make_cascaded_tanks",
     "make_clearance_coupling",
@@ -77,6 +86,7 @@ __all__ = [
     "play",
     "safe_sqrt",
     "sensor_reading",
+    "silverbox_physics",
     "stepped_reading",
     "vehicle_dictionary_library",
     "vehicle_physics_known_registers",
