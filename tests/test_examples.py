@@ -26,6 +26,8 @@ EXAMPLES = {
         "--runs 1 --noise-runs 1 --noise-levels 1e-3 --n-samples 300 --max-iter 100 --out {tmp}"
     ).split(),
     "vehicle_certificates.py": "--runs 1 --n-samples 300 --normalize-columns --out {tmp}".split(),
+    "emps_loop.py": "--quick --n-jobs 1 --out {tmp}".split(),
+    "silverbox_loop.py": "--quick --n-jobs 1 --out {tmp}".split(),
 }
 NOT_RUN = {
     "cascaded_tanks_variants.py": (
@@ -52,7 +54,7 @@ def test_every_example_is_listed():
     assert not unlisted, f"add {sorted(unlisted)} to EXAMPLES (with quick arguments) or NOT_RUN"
 
 
-STUDIES = {"vehicle_montecarlo.py"}
+STUDIES = {"vehicle_montecarlo.py", "emps_loop.py", "silverbox_loop.py"}
 """Examples run only with ``--run-slow`` (vehicle_certificates.py fits the same vehicle)."""
 
 
