@@ -28,10 +28,12 @@ A fit that fails becomes a line of ``failures_`` and the search goes on.
 from __future__ import annotations
 
 import copy
+import warnings
 from numbers import Integral
 
 import numpy as np
 from sklearn.base import BaseEstimator, MetaEstimatorMixin, RegressorMixin, clone
+from sklearn.exceptions import ConvergenceWarning
 from sklearn.utils._param_validation import HasMethods, InvalidParameterError
 from sklearn.utils.validation import check_is_fitted
 
@@ -44,17 +46,19 @@ from ..model._physics import measured_states
 from ..model_selection import SequenceSplit
 from ._candidates import Candidate
 from ._corrections import corrected_fits, scored_delta
+from ._cv import structure_cv
 from ._evidence import (
     delta_hypotheses,
     fit_declared,
     read_evidence,
     record_facts,
     reset_notes,
+    unfit_notes,
 )
 from ._final import augmented_fit, equivalents, holding_as
 from ._fits import record_rmse
 from ._proposals import candidates as propose
-from ._result import LoopResult, loop_result
+from ._result import LoopResult, loop_result, warning_counts
 from ._scoring import MODEL_LABELS
 from ._search import Search
 from ._selection import select_effects
@@ -106,11 +110,29 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
 
 def run_loop(search: Search, physics, library, given=None) -> LoopResult:
     """The whole loop on the search's record (the module docstring's stages); ``given``
-    effects, when not ``None``, are the candidates instead of the proposed ones."""
-    settings, notes = search.settings, []
+    effects, when not ``None``, are the candidates instead of the proposed ones.
+
+    The warnings of the declared physics' fit are the user's and are shown; those of the
+    search's many internal fits (a candidate stopped at ``max_iter``, a fold that diverged)
+    are counted in ``LoopResult.warnings`` and the report, and only a chosen model that did
+    not converge is warned of again."""
     with search.stage("declared physics"):
-        baseline, start, run, declared_cv, reset = fit_declared(search, physics)
-        notes += reset_notes(reset, physics)
+        declared = fit_declared(search, physics)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = _search_from(search, physics, library, given, declared)
+    result.warnings = warning_counts(caught)
+    _warn_if_chosen_unconverged(result)
+    return result
+
+
+def _search_from(search: Search, physics, library, given, declared) -> LoopResult:
+    """The stages after the declared physics' fit (``declared``: `fit_declared`'s value)."""
+    settings, notes = search.settings, []
+    baseline, start, run, reset = declared
+    with search.stage("declared physics"):
+        declared_cv = structure_cv(search, start)
+        notes += reset_notes(reset, physics) + unfit_notes(baseline)
         facts = record_facts(physics, search.z, run)
     with search.stage("evidence"):
         evidence, hypotheses = read_evidence(search, start, library)
@@ -149,6 +171,18 @@ def run_loop(search: Search, physics, library, given=None) -> LoopResult:
     )  # fmt: skip
     augmented_physics = holding_as(augment(physics, *effects), augmented)
     return loop_result(physics, augmented_physics, fits, found)
+
+
+def _warn_if_chosen_unconverged(result: LoopResult) -> None:
+    """One warning when the chosen model's own fit did not converge (the user's model)."""
+    best = result.best
+    if result.chosen != "baseline" and not best.converged_:
+        warnings.warn(
+            f"The chosen model ({MODEL_LABELS[result.chosen]}) did not converge: "
+            f"{best.solver_message_}.",
+            ConvergenceWarning,
+            stacklevel=3,
+        )
 
 
 class EffectSearchCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):

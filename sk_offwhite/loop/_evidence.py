@@ -22,7 +22,6 @@ from ..certify import identifiability
 from ..diagnose import analyse_residuals, output_jumps, range_violations
 from ..model._equations import output_name
 from ..runtime._parallel import gather, start_workers
-from ._cv import structure_cv
 from ._fits import fit_continued, warm_physics
 from ._hypotheses import evidence_hypotheses, form_hypotheses
 from ._scoring import MODEL_LABELS
@@ -33,7 +32,7 @@ __all__ = ["analyse_model"]
 
 def fit_declared(search: Search, physics):
     """The declared physics fitted (multiple shooting, then whole), the physics started from
-    that fit, its free run, its CV RMSE and the parameters reset to their declared values."""
+    that fit, its free run and the parameters reset to their declared values."""
     workers = start_workers(search.settings.n_jobs)  # they start while this process fits
     try:
         est = search.estimator(physics)
@@ -41,7 +40,17 @@ def fit_declared(search: Search, physics):
     finally:
         gather(workers)
     start, reset = start_of_later_fits(physics, baseline, search.u, search.z)
-    return baseline, start, baseline.simulate(search.u), structure_cv(search, start), reset
+    return baseline, start, baseline.simulate(search.u), reset
+
+
+def unfit_notes(baseline) -> list[str]:
+    """A note when the declared physics' fit is no model the search should build on."""
+    if baseline.converged_:
+        return []
+    return [
+        f"The declared physics' fit did not converge ({baseline.solver_message_}): every "
+        "later fit starts from it, so its results are to be read with care."
+    ]
 
 
 def start_of_later_fits(physics, baseline: GreyBoxSparseRegressor, u, z):

@@ -38,9 +38,10 @@ class LoopResult:
     term excepted: it is the physics it corrects); ``failures`` one line per fit that
     failed; ``notes`` what the loop decided not to use and why; ``timings`` the wall time of
     each stage in seconds (the stages are logged as they run, see
-    `_progress`); ``set_fits`` each model of the ``selection`` trail
-    fitted on the whole estimation record, by its label (``None`` where that fit failed), so
-    that every structural step can be scored on validation data (the report does)."""
+    `_progress`); ``warnings`` how many warnings of each kind the search's internal fits
+    raised (counted here instead of shown: see `warning_counts`); ``set_fits`` each model of the
+    ``selection`` trail fitted on the whole estimation record, by its label (``None`` where that fit
+    failed), so that every structural step can be scored on validation data (the report does)."""
 
     physics: object
     augmented_physics: object
@@ -65,6 +66,7 @@ class LoopResult:
     set_fits: dict = field(default_factory=dict)
     final_with_output_delta: GreyBoxSparseRegressor | None = None
     output_gamma_path: GammaPath | None = None
+    warnings: dict = field(default_factory=dict)
 
     @property
     def best(self) -> GreyBoxSparseRegressor:
@@ -108,3 +110,25 @@ def choose(cv_errors: dict, models: dict, notes: list) -> str:
 def empty_delta(est) -> bool:
     """Whether ``est`` was fitted with a dictionary and kept none of its terms."""
     return est.library is not None and est.n_nonzero_ == 0
+
+
+WARNING_KINDS = (
+    ("max_iter reached", "fits stopped at max_iter"),
+    ("did not converge", "fits that did not converge"),
+    ("ran from", "parameters that ran far from their start"),
+    ("diverged", "simulations that diverged"),
+    ("fold's fit failed", "folds whose fit failed"),
+)
+"""How `warning_counts` names a warning, by a phrase of its message (first match)."""
+
+
+def warning_counts(caught) -> dict[str, int]:
+    """``{kind: count}`` of the recorded warnings ``caught``, by `WARNING_KINDS` (others by
+    their category's name)."""
+    counts: dict[str, int] = {}
+    for record in caught:
+        text = str(record.message)
+        kind = next((k for phrase, k in WARNING_KINDS if phrase in text), None)
+        kind = kind or record.category.__name__
+        counts[kind] = counts.get(kind, 0) + 1
+    return counts
