@@ -58,6 +58,7 @@ from ._evidence import (
 from ._final import augmented_fit, equivalents, holding_as
 from ._fits import record_rmse
 from ._proposals import candidates as propose
+from ._proposals import proposed_groups
 from ._result import LoopResult, loop_result, warning_counts
 from ._scoring import MODEL_LABELS
 from ._search import Search
@@ -151,8 +152,9 @@ def _search_from(search: Search, physics, library, given, declared) -> LoopResul
             if given is None
             else [Candidate(effect, "given") for effect in given]
         )
+        groups = proposed_groups(search, start, hypotheses, candidates, run)
         base_rmse = record_rmse(run.outputs, search.z)
-        selection = select_effects(search, start, candidates, base_rmse, declared_cv)
+        selection = select_effects(search, start, candidates, base_rmse, declared_cv, groups)
         effects, trail, singles, _, set_fits = selection
         notes += equivalents(effects, singles, settings.tolerance)
     with search.stage(MODEL_LABELS["final"]):

@@ -12,6 +12,7 @@ from ..model._kinds import Kinds, physical_kinds
 from ..model._physics import measured_states
 from ._candidates import Candidate, promoted_terms, propose_effects, unique_by_name
 from ._evidence import output_names
+from ._groups import joint_groups
 from ._search import Search
 from ._variants import mechanism
 
@@ -91,3 +92,12 @@ def capped(proposed: list, limit: int | None) -> list:
         if kind in mechanisms:
             kept.append(candidate)
     return kept
+
+
+def proposed_groups(search: Search, physics, hypotheses, proposed, run) -> list:
+    """The groups of ``proposed`` effects that may only help together
+    (`joint_groups`), on the declared states."""
+    n_declared, _ = declared_kinds(physics)
+    declared = [h for h in hypotheses if h.equation_index < n_declared]
+    states = run.states[:, :n_declared]
+    return joint_groups(declared, proposed, states, search.u, time_step(physics))

@@ -27,14 +27,16 @@ from ._variants import mechanism, representatives, richer
 __all__ = ["select_effects"]
 
 
-def select_effects(search: Search, physics, candidates, base_rmse, declared_cv=None):
+def select_effects(search: Search, physics, candidates, base_rmse, declared_cv=None, groups=()):
     """Effect sets by forward selection and nested by single gain, chosen by CV RMSE.
 
     A set's effects are composed in the order of the single fits; with ``share_programs``
     all sets are fitted on one `Switchboard`. Returns the chosen effects (in that order),
     the CV trail (starting with ``declared_cv``, computed when ``None``), the single-fit
     RMSEs, the effects' fitted parameters (the start of the final fit) and each set's fit
-    on the whole record by the trail's labels.
+    on the whole record by the trail's labels. ``groups`` are ``(effects, starts)`` of
+    effects that may only help together (`joint_groups`): each is fitted and
+    cross-validated as a set of its own.
     """
     settings = search.settings
     if declared_cv is None:
@@ -46,6 +48,7 @@ def select_effects(search: Search, physics, candidates, base_rmse, declared_cv=N
     board = effect_sets(physics, variants, settings.share_programs)
     singles = [(c.effect.name, r) for r, c, _ in ranked]
     steps = search.released(forward(search, board, ranked, base_rmse))
+    steps += joint_steps(search, board, groups, steps, base_rmse)
     steps = by_size(best_starts(search, board, steps + nested(ranked, base_rmse, settings)))
     trail, fits = [("declared physics", declared_cv)], {}
     for name, score, fitted in sets_cv(search, board, steps):
@@ -121,6 +124,25 @@ def forward(search: Search, board, ranked, base_rmse):
         current, current_rmse = list(step[0]), step[2]
         steps.append(step)
     return steps
+
+
+def joint_steps(search: Search, board, groups, steps, base_rmse) -> list:
+    """``(effects, parameters, RMSE)`` of each group of effects that may only help
+    together, fitted from its starts, where no step holds it yet and its fit helps."""
+    reached = {frozenset(e.name for e in step[0]) for step in steps}
+    todo = [(e, s) for e, s in groups if frozenset(x.name for x in e) not in reached]
+    worker = search.detached()
+    calls = [
+        ("effects " + label(effects), quick_fit, worker, board, effects, starts)
+        for effects, starts in todo
+    ]
+    fitted = search.attempt_all(calls)
+    bar = (1.0 - search.settings.min_gain) * base_rmse
+    return [
+        (effects, fit[1], fit[0])
+        for (effects, _), fit in zip(todo, fitted, strict=True)
+        if fit is not None and fit[0] <= bar
+    ]
 
 
 def forward_pool(ranked, settings) -> list:
