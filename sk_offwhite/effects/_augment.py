@@ -45,10 +45,11 @@ class AugmentedStep(_EffectChain):
     """``step`` of an augmented model: input effects, the base step, then state effects."""
 
     def __call__(self, x, u, theta):
-        u_seen = u
+        u_seen, theta_seen = u, theta
         for effect in self.effects:
             u_seen = effect.apply_input(x, u_seen, theta)
-        x_next = jnp.asarray(self.base(x, u_seen, theta), dtype=x.dtype).reshape(x.shape)
+            theta_seen = effect.apply_parameters(x, u, theta_seen)
+        x_next = jnp.asarray(self.base(x, u_seen, theta_seen), dtype=x.dtype).reshape(x.shape)
         for effect in self.effects:
             x_next = effect.apply_state(x, u, x_next, theta)
         return x_next
@@ -73,10 +74,11 @@ class AugmentedRhs(_EffectChain):
         self.__name__ = getattr(base, "__name__", "rhs")  # names the discretised step
 
     def __call__(self, x, u, theta):
-        u_seen = u
+        u_seen, theta_seen = u, theta
         for effect in self.effects:
             u_seen = effect.apply_input(x, u_seen, theta)
-        rate = jnp.asarray(self.base(x, u_seen, theta), dtype=x.dtype).reshape(x.shape)
+            theta_seen = effect.apply_parameters(x, u, theta_seen)
+        rate = jnp.asarray(self.base(x, u_seen, theta_seen), dtype=x.dtype).reshape(x.shape)
         for effect in self.effects:
             if isinstance(effect, AdditiveEffect):
                 rate = rate.at[effect.state].add(effect.term(x, u, theta))
@@ -95,7 +97,7 @@ def _continuous(physics: PhysicsModel) -> bool:
 
 
 def _in_rhs(effect: Effect) -> bool:
-    return isinstance(effect, AdditiveEffect) or effect.target == "input"
+    return isinstance(effect, AdditiveEffect) or effect.target in ("input", "parameter")
 
 
 def _step(declared_step, effects: tuple[Effect, ...]):
@@ -160,7 +162,7 @@ def augment(physics: PhysicsModel, *effects: Effect) -> PhysicsModel:
             raise TypeError(f"effects must be Effect instances, got {effect!r}.")
     declared = getattr(physics, "declared", (physics.step, physics.output))
     everything = tuple(getattr(physics, "effects", ())) + tuple(effects)
-    states = tuple(e for e in everything if e.target in ("input", "state"))
+    states = tuple(e for e in everything if e.target in ("input", "state", "parameter"))
     outputs = tuple(e for e in everything if e.target == "output" and not e.reads_output)
     outputs += tuple(e for e in everything if e.target == "output" and e.reads_output)
     model = PhysicsModel.__new__(PhysicsModel)

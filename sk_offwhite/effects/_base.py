@@ -123,6 +123,11 @@ class Effect:
         """The output after the effect (unchanged unless the effect acts on it)."""
         return z
 
+    def apply_parameters(self, x, u, theta):
+        """The parameters the declared step sees at ``(x, u)`` (unchanged unless the effect
+        makes a declared constant vary)."""
+        return theta
+
     def _key(self):
         return (type(self), tuple(sorted(vars(self).items())))
 

@@ -61,6 +61,10 @@ class Switched(Effect):
     def apply_output(self, x, u, z, theta):
         return _if_on(self.on(theta), lambda: self.effect.apply_output(x, u, z, theta), z)
 
+    def apply_parameters(self, x, u, theta):
+        on = self.on(theta)
+        return _if_on(on, lambda: self.effect.apply_parameters(x, u, theta), theta)
+
     @property
     def hidden_states(self) -> tuple[str, ...]:
         return self.effect.hidden_states
