@@ -252,7 +252,7 @@ def test_the_path_ends_where_a_smaller_gamma_no_longer_changes_the_fit():
     np.testing.assert_array_equal(short.gammas, full.gammas[:n])
     np.testing.assert_allclose(short.coefs, full.coefs[:n], rtol=1e-9, atol=1e-12)
     assert short.selected(n - 1) == ["x1: x1^2"]
-    with pytest.raises(ValueError, match="min_improvement must be in"):
+    with pytest.raises(ValueError, match="min_improvement"):
         fit_gamma_path(_estimator(), u, z, min_improvement=1.0)
 
 

@@ -126,7 +126,8 @@ class VaryingParameter(Effect):
             return f"{p} = {self.parameter}/(1 + {ratio}²)"
         if self.family == "power":
             exponent = values.get(f"{self.name}_exponent", self.exponent)
-            return f"{p} = {self.parameter}·|{ratio}|^{float(getattr(exponent, 'value', exponent)):.3g}"
+            exponent = float(getattr(exponent, "value", exponent))
+            return f"{p} = {self.parameter}·|{ratio}|^{exponent:.3g}"
         return f"{p} = {self.parameter}·exp{ratio}"
 
     def describe(self, state_names, output_names, values=None) -> str:

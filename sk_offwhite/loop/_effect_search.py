@@ -105,6 +105,11 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
     settings = LoopSettings() if settings is None else settings
     if not isinstance(settings, LoopSettings):
         raise TypeError(f"settings must be a LoopSettings, got {type(settings).__name__}.")
+    if not isinstance(physics, PhysicsModel):
+        raise TypeError(
+            "physics must be a PhysicsModel (the declared physics the loop adds effects to), "
+            f"got {type(physics).__name__}."
+        )
     search = EffectSearchCV.from_settings(physics, library, settings)
     return search.fit(u, z).result_
 
@@ -344,7 +349,7 @@ one_standard_error, release_programs, fit_output_delta, output_bumps
         -------
         self : EffectSearchCV
         """
-        self._z_was_1d = np.ndim(z) == 1
+        self._z_was_1d = z is not None and np.asarray(z).ndim == 1
         u, z = check_record(u, z)
         settings = self.settings(len(u))
         physics, library = _checked_estimator(self.estimator, u.shape[1], z.shape[1])

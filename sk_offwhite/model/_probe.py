@@ -30,9 +30,13 @@ class OutOfRange(NamedTuple):
 
 def out_of_range_reads(function, *args) -> list[OutOfRange]:
     """Every read of ``function(*args)`` beyond an array's length whose position is fixed
-    when the function is traced (none when it cannot be traced)."""
+    when the function is traced (none when it cannot be traced).
+
+    Traced under ``enable_x64``, as every fit is: a first trace at another width would
+    leave the constants JAX caches for ``function`` at that width."""
     try:
-        closed = jax.make_jaxpr(function)(*args)
+        with jax.enable_x64(True):
+            closed = jax.make_jaxpr(function)(*args)
     except Exception:  # noqa: BLE001 - the physics' own checks report untraceable code
         return []
     values = dict(zip(closed.jaxpr.constvars, map(np.asarray, closed.consts), strict=True))
