@@ -32,6 +32,7 @@ from .effects import (
     SensorStep,
     Stiffness,
     Switched,
+    VaryingParameter,
     augment,
     switched,
 )
@@ -84,6 +85,7 @@ __all__ = [
     "SequenceWarning",
     "Stiffness",
     "Switched",
+    "VaryingParameter",
     "augment",
     "compile_basis",
     "enable_compilation_cache",

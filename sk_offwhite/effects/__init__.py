@@ -6,7 +6,8 @@ an overflow, a saturation, a friction, a lag. One module per family: limits
 terms (`Bias`, `Leak`, `PowerLoss`), mechanics (`Friction`, `Stiffness`, `PowerStiffness`,
 `QuadraticDrag`, `PowerDrag`), play (`Backlash`), lags and delay (`InputLag`, `SensorLag`,
 `InputDelay`), sensors (`OutputOffset`, `SensorCalibration`, `SensorStep`) and laws
-(`RelaxedLaw`, `DictionaryTerm`). Every name is also importable from `sk_offwhite`.
+(`RelaxedLaw`, `DictionaryTerm`) and a declared constant that varies
+(`VaryingParameter`). Every name is also importable from `sk_offwhite`.
 """
 
 from ._augment import augment
@@ -27,6 +28,7 @@ from ._play import Backlash
 from ._sensors import OutputOffset, SensorCalibration, SensorStep
 from ._switched import Switched, SwitchedTerm, switched
 from ._terms import Bias, Leak, PowerLoss
+from ._varying import VaryingParameter
 
 __all__ = [
     "AdditiveEffect",
@@ -62,6 +64,7 @@ __all__ = [
     "Stiffness",
     "Switched",
     "SwitchedTerm",
+    "VaryingParameter",
     "augment",
     "switched",
 ]

@@ -9,7 +9,7 @@ of one closed form:
 
 $$
 \text{polynomial } 1 \pm (v/v_s)^2, \qquad \text{rational } \frac{1}{1 + (v/v_s)^2}, \qquad
-\text{power } |v/v_s|^p, \qquad \text{exponential } e^{v/v_s},
+\text{power } |v/v_s|^p, \qquad \text{exponential } e^{\pm v/v_s},
 $$
 
 with the scale $v_s > 0$ (in the variable's units) and the exponent $p$ fitted. The
@@ -30,7 +30,7 @@ __all__ = ["VaryingParameter"]
 FAMILIES = ("polynomial", "rational", "power", "exponential")
 """The closed forms of the factor."""
 
-EXPONENT_BOUNDS = (0.05, 6.0)
+EXPONENT_BOUNDS = (-6.0, 6.0)
 """Where the power law's exponent is fitted."""
 
 
@@ -49,8 +49,14 @@ class VaryingParameter(Effect):
     exponent : float, default=1.0
         Start of $p$ (``{name}_exponent``, power law only).
     rising : bool, default=True
-        The polynomial's sign: $1 + (v/v_s)^2$ (a hardening spring) or $1 - (v/v_s)^2$.
+        The sign of the polynomial and exponential forms: $1 + (v/v_s)^2$ (a hardening
+        spring) or $1 - (v/v_s)^2$, $e^{v/v_s}$ or $e^{-v/v_s}$.
     source : {'state', 'input'}, default='state'
+    stiffness : bool, default=False
+        The parameter is a stiffness and the variable its deflection: the sign reads
+        ``"hardening"`` or ``"softening"``.
+    variable_name : str, default=None
+        The variable's name in the descriptions (``None``: the state's name, or ``u{k}``).
     name : str, default=None
         ``vary_{parameter}`` when ``None``.
     """
@@ -67,6 +73,8 @@ class VaryingParameter(Effect):
         exponent: float = 1.0,
         rising: bool = True,
         source: str = "state",
+        stiffness: bool = False,
+        variable_name: str | None = None,
         name: str | None = None,
     ):
         if family not in FAMILIES:
@@ -77,7 +85,9 @@ class VaryingParameter(Effect):
             raise ValueError(f"scale must be finite and positive, got {scale!r}.")
         self.parameter, self.variable, self.family = str(parameter), int(variable), family
         self.scale, self.exponent, self.rising = float(scale), float(exponent), bool(rising)
-        self.source, self.name = source, name or f"vary_{parameter}"
+        self.source, self.stiffness = source, bool(stiffness)
+        self.variable_name = variable_name
+        self.name = name or f"vary_{parameter}"
 
     def parameters(self) -> dict[str, Parameter]:
         params = {f"{self.name}_scale": _positive(self.scale)}
@@ -95,7 +105,7 @@ class VaryingParameter(Effect):
         if self.family == "power":
             safe = xp.maximum(xp.abs(scaled), 1e-12)
             return safe ** theta[f"{self.name}_exponent"]
-        return xp.exp(scaled)
+        return xp.exp(scaled if self.rising else -scaled)
 
     def apply_parameters(self, x, u, theta):
         v = (x if self.source == "state" else u)[self.variable]
@@ -103,37 +113,50 @@ class VaryingParameter(Effect):
 
     def sign(self, values=None) -> str:
         """Whether the coefficient rises or falls as $|v|$ grows (with $v$ for the
-        exponential form), at the fitted ``values`` where they matter."""
-        if self.family == "polynomial":
-            return "rising" if self.rising else "falling"
+        exponential form), at the fitted ``values`` where they matter; ``"hardening"`` or
+        ``"softening"`` for a stiffness."""
+        rising = self._rising(values)
+        if self.stiffness:
+            return "hardening" if rising else "softening"
+        return "rising" if rising else "falling"
+
+    def _rising(self, values=None) -> bool:
         if self.family == "rational":
-            return "falling"
+            return False
         if self.family == "power":
-            exponent = (values or {}).get(f"{self.name}_exponent", self.exponent)
-            return "rising" if float(getattr(exponent, "value", exponent)) > 0 else "falling"
-        return "rising"
+            return _number((values or {}).get(f"{self.name}_exponent", self.exponent)) > 0
+        return self.rising
 
     def formula(self, variable_name: str, values=None) -> str:
         """The law with its numbers, e.g. ``k(q) = k·(1 + (q/0.04)²)``."""
         values = values or {}
-        scale = values.get(f"{self.name}_scale", self.scale)
-        scale = float(getattr(scale, "value", scale))
+        scale = _number(values.get(f"{self.name}_scale", self.scale))
         v, p = variable_name, f"{self.parameter}({variable_name})"
+        value = values.get(self.parameter)
+        theta = self.parameter if value is None else f"{_number(value):.4g}"
         ratio = f"({v}/{scale:.4g})"
         if self.family == "polynomial":
-            return f"{p} = {self.parameter}·(1 {'+' if self.rising else '-'} {ratio}²)"
+            return f"{p} = {theta}·(1 {'+' if self.rising else '-'} {ratio}²)"
         if self.family == "rational":
-            return f"{p} = {self.parameter}/(1 + {ratio}²)"
+            return f"{p} = {theta}/(1 + {ratio}²)"
         if self.family == "power":
-            exponent = values.get(f"{self.name}_exponent", self.exponent)
-            exponent = float(getattr(exponent, "value", exponent))
-            return f"{p} = {self.parameter}·|{ratio}|^{exponent:.3g}"
-        return f"{p} = {self.parameter}·exp{ratio}"
+            exponent = _number(values.get(f"{self.name}_exponent", self.exponent))
+            return f"{p} = {theta}·|{ratio}|^{exponent:.3g}"
+        return f"{p} = {theta}·exp({'' if self.rising else '-'}{v}/{scale:.4g})"
 
     def describe(self, state_names, output_names, values=None) -> str:
-        names = state_names if self.source == "state" else ("input",) * (self.variable + 1)
-        variable = names[self.variable] if self.variable < len(names) else f"v{self.variable}"
+        if self.variable_name is not None:
+            variable = self.variable_name
+        elif self.source == "state" and self.variable < len(state_names):
+            variable = state_names[self.variable]
+        else:
+            variable = f"{'x' if self.source == 'state' else 'u'}{self.variable}"
         return (
             f"the declared constant {self.parameter} depends on {variable}: "
             f"{self.formula(variable, values)} ({self.sign(values)})"
         )
+
+
+def _number(value) -> float:
+    """A float of a fitted value, a `Parameter` or a number."""
+    return float(getattr(value, "value", value))

@@ -58,7 +58,7 @@ from ._evidence import (
 from ._final import augmented_fit, equivalents, holding_as
 from ._fits import record_rmse
 from ._proposals import candidates as propose
-from ._proposals import proposed_groups
+from ._proposals import proposed_groups, varying_candidates
 from ._result import LoopResult, loop_result, warning_counts
 from ._scoring import MODEL_LABELS
 from ._search import Search
@@ -144,6 +144,7 @@ def _search_from(search: Search, physics, library, given, declared) -> LoopResul
         evidence, hypotheses = read_evidence(search, start, library)
         snapshot = copy.copy(evidence)  # the physics-only fit, kept when the path refits it
     fits = {"baseline": (baseline, None, declared_cv)}
+    readings = []
     if settings.fit_delta:
         with search.stage(MODEL_LABELS["with_delta"]):
             # the evidence estimator has the path's settings when CV fits whole blocks
@@ -151,9 +152,11 @@ def _search_from(search: Search, physics, library, given, declared) -> LoopResul
             fits["with_delta"] = scored_delta(search, "with_delta", start, library, reuse)
             est, _, cv = fits["with_delta"]
             hypotheses = hypotheses + delta_hypotheses(search, est, cv, declared_cv, notes)
+            if cv < declared_cv:  # a correction that does not validate holds no law
+                readings = search.attempt("reading of δ", varying_candidates, search, start, est)
     with search.stage("effect selection"):
         candidates = (
-            propose(search, start, library, hypotheses, facts, run)
+            propose(search, start, library, hypotheses, facts, run) + (readings or [])
             if given is None
             else [Candidate(effect, "given") for effect in given]
         )
@@ -168,6 +171,7 @@ def _search_from(search: Search, physics, library, given, declared) -> LoopResul
         )
         notes += [note] if note else []
     fits["final"] = (final, None, final_cv)
+    notes += search.notes
     measured = measured_states(physics.output)
     fits |= corrected_fits(search, augmented, final, library, measured, notes)
     found = dict(

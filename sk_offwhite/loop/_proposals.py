@@ -5,6 +5,7 @@ physics and every constant the user declared relaxable."""
 from __future__ import annotations
 
 from ..diagnose import OutputJump, RangeViolation, correlated_inputs, lagging_outputs
+from ..effects import VaryingParameter
 from ..effects._augment import time_step
 from ..effects._hidden import n_declared_states
 from ..effects._laws import relaxations
@@ -13,10 +14,11 @@ from ..model._physics import measured_states
 from ._candidates import Candidate, promoted_terms, propose_effects, unique_by_name
 from ._evidence import output_names
 from ._groups import joint_groups
+from ._reading import read_varying_parameters
 from ._search import Search
 from ._variants import mechanism
 
-__all__ = ["candidates", "capped"]
+__all__ = ["candidates", "capped", "varying_candidates"]
 
 
 def candidates(search: Search, physics, library, hypotheses, facts, run) -> list[Candidate]:
@@ -101,3 +103,48 @@ def proposed_groups(search: Search, physics, hypotheses, proposed, run) -> list:
     declared = [h for h in hypotheses if h.equation_index < n_declared]
     states = run.states[:, :n_declared]
     return joint_groups(declared, proposed, states, search.u, time_step(physics))
+
+
+MAX_READINGS = 2
+"""Varying constants proposed from one δ: the best form of each of the first pairs
+(parameter, variable) the readings rank."""
+
+
+def varying_candidates(search: Search, physics, fitted) -> list[Candidate]:
+    """The declared constants that the fitted ``physics`` + δ (``fitted``) reads as laws of
+    a state or input (`read_varying_parameters`), each as a
+    [`VaryingParameter`][sk_offwhite.VaryingParameter] started where the reading ends; none
+    without a fit, on a physics with hidden states, or when no reading counts."""
+    if fitted is None or physics.n_states > n_declared_states(physics):
+        return []
+    run = fitted.simulate(search.u)
+    readings = read_varying_parameters(
+        physics, fitted.parameters_, run.states, search.u, run.correction
+    )
+    best = {}
+    for reading in readings:
+        best.setdefault((reading.parameter, reading.variable), reading)
+    chosen = list(best.values())[:MAX_READINGS]
+    return [Candidate(varying_effect(physics, r), r.sentence) for r in chosen]
+
+
+def varying_effect(physics, reading) -> VaryingParameter:
+    """The effect that holds ``reading``'s law, its constants as the start."""
+    states = list(physics.state_names)
+    source = "state" if reading.variable in states else "input"
+    names = states if source == "state" else list(physics.input_names)
+    constants = reading.constants
+    rising = reading.sign in ("rising", "hardening")
+    if reading.family == "exponential":
+        rising = constants["x_s"] > 0
+    return VaryingParameter(
+        reading.parameter,
+        names.index(reading.variable),
+        reading.family,
+        abs(float(constants["x_s"])),
+        exponent=float(constants.get("p", 1.0)),
+        rising=rising,
+        source=source,
+        stiffness=reading.sign in ("hardening", "softening"),
+        variable_name=reading.variable,
+    )

@@ -37,12 +37,14 @@ def _trying(function, *args):
 
 @dataclass
 class Search:
-    """The estimation record ``(u, z)``, the loop's settings and the failures so far."""
+    """The estimation record ``(u, z)``, the loop's settings, and the failures and notes
+    so far."""
 
     u: np.ndarray
     z: np.ndarray
     settings: LoopSettings
     failures: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
     clock: StageClock = field(default_factory=StageClock, repr=False)
 
     def detached(self) -> Search:

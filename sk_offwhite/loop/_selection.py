@@ -17,6 +17,7 @@ import numpy as np
 from ..effects import DictionaryTerm
 from ._cv import structure_cv
 from ._fits import label, own, quick_fit
+from ._plausibility import chosen_index, stand_in_reasons
 from ._proposals import capped
 from ._refinement import swap
 from ._search import Search
@@ -54,7 +55,7 @@ def select_effects(search: Search, physics, candidates, base_rmse, declared_cv=N
     for name, score, fitted in sets_cv(search, board, steps):
         fits[name] = fitted
         trail.append((name, score))
-    k = smallest_within([s for _, s in trail], settings.tolerance)
+    k = physical_choice(search, physics, trail, steps)
     if k == 0 or trail[k][1] > (1.0 - settings.min_gain) * trail[0][1]:
         return (), trail, singles, {}, fits
     chosen, warm, _ = steps[k - 1]
@@ -236,10 +237,18 @@ def by_size(steps):
     return sorted(unique.values(), key=lambda step: len(step[0]))
 
 
-def smallest_within(scores: list[float], tolerance: float) -> int:
-    """Index of the first score within ``tolerance`` (relative) of the smallest."""
-    best = min(scores)
-    return next(k for k, s in enumerate(scores) if s <= best * (1.0 + tolerance))
+def physical_choice(search: Search, physics, trail, steps) -> int:
+    """Index in ``trail`` of the smallest set within ``tolerance`` of the best CV error,
+    a physical one when any is (`chosen_index`); each stand-in within reach is noted."""
+    declared = {name: p.value for name, p in physics.parameters.items()}
+    reasons = [[]] + [stand_in_reasons(declared, step[1]) for step in steps]
+    scores = [score for _, score in trail]
+    k = chosen_index(scores, [not r for r in reasons], search.settings.tolerance)
+    for (name, score), why in zip(trail, reasons, strict=True):
+        if why and np.isfinite(score) and score < scores[0]:
+            chosen = " (chosen: no physical set comes within reach)" if name == trail[k][0] else ""
+            search.notes.append(f"{name} fits, but not physical: {'; '.join(why)}{chosen}.")
+    return k
 
 
 def with_richer(effects) -> list:

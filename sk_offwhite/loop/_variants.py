@@ -28,6 +28,7 @@ from ..effects import (
     SensorLag,
     SensorStep,
     Stiffness,
+    VaryingParameter,
 )
 from ._fits import size
 
@@ -78,6 +79,11 @@ def _(effect: Stiffness) -> str:
 @mechanism.register
 def _(effect: QuadraticDrag) -> str:
     return f"drag of state {effect.state}"
+
+
+@mechanism.register
+def _(effect: VaryingParameter) -> str:
+    return f"variation of {effect.parameter}"
 
 
 @mechanism.register(InputLag)

@@ -1,0 +1,121 @@
+"""Tests of a declared constant made a law of one variable (`VaryingParameter`), of the
+loop's stand-in check (`sk_offwhite.loop._plausibility`) and of the loop proposing the law
+that its fitted δ reads."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from sk_offwhite import VaryingParameter, augment
+from sk_offwhite.datasets._varying import (
+    make_hardening_spring,
+    make_piezoviscous_bearing,
+    make_saturating_inductor,
+    make_valve_tank,
+)
+from sk_offwhite.loop._plausibility import chosen_index, stand_in_reasons
+from sk_offwhite.loop._proposals import varying_effect
+from sk_offwhite.loop._reading import read_varying_parameters
+
+N = 400
+
+
+def _law_effect(data) -> VaryingParameter:
+    """The generator's own law as an effect on its declared physics."""
+    truth = data.varying
+    physics = data.physics
+    source = "state" if truth["variable"] in physics.state_names else "input"
+    names = list(physics.state_names if source == "state" else physics.input_names)
+    constants = truth["constants"]
+    return VaryingParameter(
+        truth["parameter"],
+        names.index(truth["variable"]),
+        truth["family"],
+        abs(constants["x_s"]),
+        exponent=constants.get("p", 1.0),
+        rising=truth["sign"] in ("hardening", "rising") or constants["x_s"] > 0,
+        source=source,
+        stiffness=truth["sign"] in ("hardening", "softening"),
+    )
+
+
+def _rollout(physics, theta, x0, u) -> np.ndarray:
+    with jax.enable_x64(True):
+        step = jax.jit(physics.step)
+        x, states = jnp.asarray(x0, float), []
+        for uk in jnp.asarray(u):
+            states.append(x)
+            x = step(x, uk, theta)
+    return np.asarray(states)
+
+
+@pytest.mark.parametrize(
+    "make",
+    [make_hardening_spring, make_saturating_inductor, make_valve_tank, make_piezoviscous_bearing],
+)
+def test_the_law_substituted_is_the_true_plant(make):
+    """The declared physics with the generator's law substituted (inside the right-hand
+    side) runs the true plant's trajectory, to rounding."""
+    data = make(n_samples=N, random_state=0)
+    effect = _law_effect(data)
+    model = augment(data.physics, effect)
+    theta = {**data.true_parameters, f"{effect.name}_scale": effect.scale}
+    if effect.family == "power":
+        theta[f"{effect.name}_exponent"] = effect.exponent
+    ours = _rollout(model, theta, data.true_x0, data.u_est)
+    truth = _rollout(data.true_physics, data.true_parameters, data.true_x0, data.u_est)
+    np.testing.assert_allclose(ours, truth, rtol=1e-9, atol=1e-12 * np.abs(truth).max())
+
+
+def test_descriptions_say_the_law_and_its_sign():
+    spring = VaryingParameter("k", 0, "polynomial", 0.04, stiffness=True)
+    assert spring.sign() == "hardening"
+    text = spring.describe(("q", "v"), ("q",), {"k": 20.0, "vary_k_scale": 0.04})
+    assert "k(q) = 20·(1 + (q/0.04)²)" in text and "hardening" in text
+    soft = VaryingParameter("k", 0, "polynomial", 0.04, rising=False, stiffness=True)
+    assert soft.sign() == "softening"
+    valve = VaryingParameter("Cv", 0, "power", 0.5, exponent=1.5, source="input",
+                             variable_name="a")  # fmt: skip
+    assert valve.formula("a", {"Cv": 2.0, "vary_Cv_exponent": 1.5}) == "Cv(a) = 2·|(a/0.5)|^1.5"
+    assert valve.sign({"vary_Cv_exponent": -0.5}) == "falling"
+    assert (
+        VaryingParameter("b", 1, "exponential", 4e7, source="input")
+        .describe(("w",), ("w",))
+        .startswith("the declared constant b depends on u1")
+    )
+    with pytest.raises(ValueError, match="family"):
+        VaryingParameter("k", 0, "cubic", 1.0)
+    with pytest.raises(ValueError, match="scale"):
+        VaryingParameter("k", 0, "rational", -1.0)
+
+
+def test_stand_ins_are_named_and_not_chosen_within_tolerance():
+    declared = {"R": 2.0, "L": 0.5, "offset": 0.0}
+    assert stand_in_reasons(declared, {"R": 2.4, "L": 0.45, "offset": 3.0}) == []
+    reasons = stand_in_reasons(declared, {"R": 751.0, "L": -0.1})
+    assert reasons == ["R moves from 2 to 751", "L changes sign (0.5 → -0.1)"]
+    # the declared physics, a stand-in slightly better, a physical set within 2 %
+    assert chosen_index([1.0, 0.50, 0.505], [True, False, True], 0.02) == 2
+    assert chosen_index([1.0, 0.30, 0.505], [True, False, True], 0.02) == 1
+    assert chosen_index([1.0, 0.50, 0.505], [True, True, True], 0.02) == 1
+
+
+def test_the_reading_becomes_the_effect_that_holds_it():
+    """On the exact correction of the hardening spring, the reading's effect is the
+    generator's law, its scale within 1 %."""
+    data = make_hardening_spring(n_samples=N, random_state=0)
+    with jax.enable_x64(True):
+        steps = [jax.vmap(p.step, in_axes=(0, 0, None)) for p in (data.true_physics, data.physics)]
+        nexts = [step(jnp.asarray(data.x_est), jnp.asarray(data.u_est), data.true_parameters)
+                 for step in steps]  # fmt: skip
+    correction = np.asarray(nexts[0] - nexts[1])
+    reading = read_varying_parameters(
+        data.physics, data.true_parameters, data.x_est, data.u_est, correction
+    )[0]
+    effect = varying_effect(data.physics, reading)
+    assert (effect.parameter, effect.variable, effect.family, effect.source) == (
+        "k", 0, "polynomial", "state"
+    )  # fmt: skip
+    assert effect.rising and effect.stiffness and effect.sign() == "hardening"
+    assert effect.scale == pytest.approx(data.varying["constants"]["x_s"], rel=0.01)
