@@ -114,6 +114,27 @@ def test_report_is_written_with_figures(leaky, tmp_path):
     assert "## Correction of the output map on the augmented physics" in text
 
 
+def test_results_json_holds_what_the_report_says(leaky, tmp_path):
+    """Effects, parameters with standard errors and status, CV errors, the chosen model,
+    failures, notes and warnings: results.json round-trips the report's facts."""
+    import json
+
+    data, result = leaky
+    records = {"estimation": (data.u, data.z), "validation": (data.u_val, data.z_val)}
+    text = write_report(result, score_models(result, records), records, tmp_path, title="t")
+    facts = json.loads((tmp_path / "results.json").read_text())
+    assert facts["chosen"] == result.chosen
+    assert [e["name"] for e in facts["effects"]] == [e.name for e in result.effects]
+    assert set(facts["parameters"]) == set(result.final.parameters_)
+    for name, fact in facts["parameters"].items():
+        assert fact["value"] == pytest.approx(float(result.final.parameters_[name]))
+        assert fact["status"] in ("free", "fixed", "held", "at bound")
+        assert f"| {name} | {fact['value']:.6g} |" in text.read_text()
+    assert facts["cv_errors"]["final"] == pytest.approx(result.cv_errors["final"])
+    assert facts["failures"] == result.failures and facts["notes"] == result.notes
+    assert "## Warnings of the search's internal fits" in text.read_text()
+
+
 def test_every_effect_set_of_the_trail_is_scored_on_validation(leaky, tmp_path):
     """Each structural step of the trail carries its fit on the estimation record, and the
     report scores it on the validation record next to its CV error."""

@@ -85,20 +85,54 @@ def _figure_correction(result, u, path: Path) -> bool:
     return True
 
 
-def _parameter_lines(est, u, z) -> list[str]:
-    """Fitted parameters with Gauss-Newton standard errors and the identifiability verdict."""
+BOUND_TOLERANCE = 1e-6
+"""A free parameter within this relative distance of a bound is flagged as at it."""
+
+
+def parameter_status(result, name: str, value: float) -> str:
+    """``"fixed"`` (declared so), ``"held"`` (by the loop, on a direction the data leave
+    undetermined), ``"at bound"`` or ``"free"``: how the final fit treats ``name``."""
+    declared = {**result.physics.parameters}
+    for effect in result.effects:
+        declared.update(effect.parameters())
+    final = result.final.physics_.parameters[name]
+    if name in declared and declared[name].fixed:
+        return "fixed"
+    if final.fixed:
+        return "held"
+    scale = max(abs(value), 1.0)
+    bounds = [b for b in final.bounds if b is not None and np.isfinite(b)]
+    return "at bound" if any(abs(value - b) <= BOUND_TOLERANCE * scale for b in bounds) else "free"
+
+
+def parameter_facts(result, u, z) -> tuple[dict, str]:
+    """``{name: {value, standard_error, status}}`` of the final fit (Gauss-Newton standard
+    errors, `None` where the parameter is not fitted) and the identifiability verdict."""
+    est = result.final
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UnidentifiableWarning)
         report = identifiability(est, u, z, include_omega=False)
-    errors = report.standard_errors
-    lines = ["| augmented physics | value | standard error |", "|---|---|---|"]
-    lines += [
-        f"| {k} | {v:.6g} | "
-        + ("fixed" if est.physics_.parameters[k].fixed else f"{errors.get(k, np.nan):.3g}")
-        + " |"
-        for k, v in est.parameters_.items()
+    facts = {}
+    for name, value in est.parameters_.items():
+        status = parameter_status(result, name, float(value))
+        error = report.standard_errors.get(name) if status in ("free", "at bound") else None
+        facts[name] = {"value": float(value), "standard_error": error, "status": status}
+    return facts, report.verdict
+
+
+def _parameter_lines(facts: dict, verdict: str) -> list[str]:
+    """Fitted parameters with their standard errors, status and the identifiability verdict."""
+    lines = ["| augmented physics | value | standard error | status |", "|---|---|---|---|"]
+    for name, fact in facts.items():
+        error = fact["standard_error"]
+        shown = "—" if error is None else f"{error:.3g}"
+        lines.append(f"| {name} | {fact['value']:.6g} | {shown} | {fact['status']} |")
+    notes = [
+        "",
+        "Status: *fixed* as declared; *held* by the loop at its fitted value on a direction "
+        "the data leave undetermined; *at bound* where the fit ended on a bound.",
     ]
-    return lines + ["", f"Identifiability (Assumption 1): {report.verdict}.", ""]
+    return lines + notes + ["", f"Identifiability (Assumption 1): {verdict}.", ""]
 
 
 def _hypothesis_lines(result) -> list[str]:
@@ -169,14 +203,33 @@ def _set_score(est, u, z, init_window: int = 50) -> str:
     return f"{overall['rmse']:.4f}"
 
 
-def _choice_lines(result) -> list[str]:
-    """Cross-validated error of every final model and the one chosen."""
-    lines = ["| model | cross-validated RMSE (estimation record) |", "|---|---|"]
-    lines += [
-        f"| {MODEL_LABELS[key]}{' (chosen)' if key == result.chosen else ''} | {cv:.4f} |"
-        for key, cv in result.cv_errors.items()
+def _validation_rmse(rows: list[dict], label: str) -> str:
+    """The validation RMSE of the model ``label`` in ``rows`` (``init_window``), or a dash."""
+    for row in rows:
+        if (row["model"], row["record"], row["protocol"]) == (label, "validation", "init_window"):
+            return "—" if row.get("rmse") is None else f"{row['rmse']:.4f}"
+    return "—"
+
+
+def _choice_lines(result, rows: list[dict]) -> list[str]:
+    """Cross-validated error of every final model, its validation error beside it (only
+    scored: the choice is the CV error's), and the one chosen."""
+    lines = [
+        "| model | cross-validated RMSE (estimation record) | validation RMSE (init_window) |",
+        "|---|---|---|",
     ]
+    for key, cv in result.cv_errors.items():
+        label = MODEL_LABELS[key]
+        chosen = " (chosen)" if key == result.chosen else ""
+        lines.append(f"| {label}{chosen} | {cv:.4f} | {_validation_rmse(rows, label)} |")
     return lines + [""]
+
+
+def _warning_lines(result) -> list[str]:
+    """The warnings of the loop's internal fits, counted (the user's own are printed)."""
+    if not result.warnings:
+        return ["- none", ""]
+    return [f"- {count} × {kind}" for kind, count in result.warnings.items()] + [""]
 
 
 def _timing_lines(result) -> list[str]:
@@ -265,7 +318,8 @@ def write_report(result, rows, records: dict, directory, *, title: str, notes=()
     lines += ["![correction](correction.png)", ""] if has_delta_fig else []
     lines += ["## Effects tried and added", ""] + _candidate_lines(result) + [""]
     lines += _selection_lines(result, records) + [""]
-    lines += ["## Parameters", ""] + _parameter_lines(result.final, *records["estimation"])
+    facts, verdict = parameter_facts(result, *records["estimation"])
+    lines += ["## Parameters", ""] + _parameter_lines(facts, verdict)
     if result.with_delta is not None:
         lines += ["## Sparse correction on the declared physics", ""]
         lines += _gamma_lines(result.gamma_path, result.with_delta.gamma)
@@ -273,11 +327,58 @@ def write_report(result, rows, records: dict, directory, *, title: str, notes=()
     lines += _remaining_lines(result)
     lines += ["## Correction of the output map on the augmented physics", ""]
     lines += _output_lines(result)
-    lines += ["## Model chosen (lowest cross-validated error)", ""] + _choice_lines(result)
+    lines += ["## Model chosen (lowest cross-validated error)", ""] + _choice_lines(result, rows)
     lines += ["## Fits that failed", ""] + _failure_lines(result)
+    lines += ["## Warnings of the search's internal fits", ""] + _warning_lines(result)
     lines += ["## Time per stage", ""] + _timing_lines(result)
     lines += [f"![outputs {n}](outputs_{n}.png)" for n in records] + [""]
     (out / "report.md").write_text("\n".join(lines), encoding="utf-8")
-    table = json.dumps({"rows": _json_rows(rows)}, indent=2, allow_nan=False)
+    facts = results_facts(result, rows, facts, verdict)
+    table = json.dumps(facts, indent=2, allow_nan=False, default=_plain)
     (out / "results.json").write_text(table, encoding="utf-8")
     return out / "report.md"
+
+
+def results_facts(result, rows, parameters: dict, verdict: str) -> dict:
+    """What the report says, as plain data: the scores, the chosen model, the effects with
+    their descriptions, the parameters, the CV errors, failures, notes, warnings, timings."""
+    values = result.final.parameters_
+    effects = [
+        {
+            "name": effect.name,
+            "description": effect.describe(result.physics.state_names, _names(result), values),
+            "parameters": {k: float(values[k]) for k in effect.parameters() if k in values},
+        }
+        for effect in result.effects
+    ]
+    return {
+        "rows": _json_rows(rows),
+        "chosen": result.chosen,
+        "effects": effects,
+        "parameters": _finite(parameters),
+        "identifiability": verdict,
+        "cv_errors": _finite(dict(result.cv_errors)),
+        "selection": [[name, _finite(score)] for name, score in result.selection],
+        "failures": list(result.failures),
+        "notes": list(result.notes),
+        "warnings": dict(result.warnings),
+        "timings": dict(result.timings),
+    }
+
+
+def _finite(value):
+    """``value`` with every non-finite float as ``None`` (strict JSON), nested."""
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, float | np.floating):
+        return float(value) if np.isfinite(value) else None
+    return value
+
+
+def _plain(value):
+    """NumPy scalars and arrays as JSON values."""
+    if isinstance(value, np.generic):
+        return _finite(value.item())
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
