@@ -7,7 +7,9 @@ of the strongest is tried: effects such as Coulomb friction and a force offset o
 together). The sets of that order, and the nested sets of the candidates that helped alone
 in the order of their gain, are cross-validated, each from its own fit on the whole record;
 the smallest within ``tolerance`` of the best is kept if it beats the declared physics by
-``min_gain``, then refined stepwise (`sk_offwhite.loop._refinement`).
+``min_gain``, then refined stepwise (`sk_offwhite.loop._refinement`). A set that moves a
+declared parameter tenfold or flips its sign is a stand-in, kept only when no physical set
+comes within ``tolerance`` of it (`sk_offwhite.loop._plausibility`).
 """
 
 from __future__ import annotations
@@ -239,14 +241,17 @@ def by_size(steps):
 
 def physical_choice(search: Search, physics, trail, steps) -> int:
     """Index in ``trail`` of the smallest set within ``tolerance`` of the best CV error,
-    a physical one when any is (`chosen_index`); each stand-in within reach is noted."""
+    a physical one when any is (`chosen_index`); each stand-in that beats the declared
+    physics is noted (``physics`` holds the declared fit's values)."""
     declared = {name: p.value for name, p in physics.parameters.items()}
     reasons = [[]] + [stand_in_reasons(declared, step[1]) for step in steps]
     scores = [score for _, score in trail]
     k = chosen_index(scores, [not r for r in reasons], search.settings.tolerance)
     for (name, score), why in zip(trail, reasons, strict=True):
         if why and np.isfinite(score) and score < scores[0]:
-            chosen = " (chosen: no physical set comes within reach)" if name == trail[k][0] else ""
+            chosen = (
+                " (kept: no physical set comes within tolerance)" if name == trail[k][0] else ""
+            )
             search.notes.append(f"{name} fits, but not physical: {'; '.join(why)}{chosen}.")
     return k
 
