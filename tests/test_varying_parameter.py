@@ -71,14 +71,14 @@ def test_the_law_substituted_is_the_true_plant(make):
 def test_descriptions_say_the_law_and_its_sign():
     spring = VaryingParameter("k", 0, "polynomial", 0.04, stiffness=True)
     assert spring.sign() == "hardening"
-    text = spring.describe(("q", "v"), ("q",), {"k": 20.0, "vary_k_scale": 0.04})
+    text = spring.describe(("q", "v"), ("q",), {"k": 20.0, "vary_k_x0_scale": 0.04})
     assert "k(q) = 20·(1 + (q/0.04)²)" in text and "hardening" in text
     soft = VaryingParameter("k", 0, "polynomial", 0.04, rising=False, stiffness=True)
     assert soft.sign() == "softening"
     valve = VaryingParameter("Cv", 0, "power", 0.5, exponent=1.5, source="input",
                              variable_name="a")  # fmt: skip
-    assert valve.formula("a", {"Cv": 2.0, "vary_Cv_exponent": 1.5}) == "Cv(a) = 2·|(a/0.5)|^1.5"
-    assert valve.sign({"vary_Cv_exponent": -0.5}) == "falling"
+    assert valve.formula("a", {"Cv": 2.0, "vary_Cv_a_exponent": 1.5}) == "Cv(a) = 2·|(a/0.5)|^1.5"
+    assert valve.sign({"vary_Cv_a_exponent": -0.5}) == "falling"
     assert (
         VaryingParameter("b", 1, "exponential", 4e7, source="input")
         .describe(("w",), ("w",))

@@ -58,7 +58,8 @@ class VaryingParameter(Effect):
     variable_name : str, default=None
         The variable's name in the descriptions (``None``: the state's name, or ``u{k}``).
     name : str, default=None
-        ``vary_{parameter}`` when ``None``.
+        ``vary_{parameter}_{variable_name}`` when ``None`` (``x{k}`` or ``u{k}`` without a
+        ``variable_name``).
     """
 
     target = "parameter"
@@ -87,7 +88,8 @@ class VaryingParameter(Effect):
         self.scale, self.exponent, self.rising = float(scale), float(exponent), bool(rising)
         self.source, self.stiffness = source, bool(stiffness)
         self.variable_name = variable_name
-        self.name = name or f"vary_{parameter}"
+        where = variable_name or f"{'x' if source == 'state' else 'u'}{self.variable}"
+        self.name = name or f"vary_{parameter}_{where}"
 
     def parameters(self) -> dict[str, Parameter]:
         params = {f"{self.name}_scale": _positive(self.scale)}

@@ -105,6 +105,7 @@ def close_the_loop(physics, library, u, z, *, settings: LoopSettings | None = No
     settings = LoopSettings() if settings is None else settings
     if not isinstance(settings, LoopSettings):
         raise TypeError(f"settings must be a LoopSettings, got {type(settings).__name__}.")
+    check_record(u, z)
     if not isinstance(physics, PhysicsModel):
         raise TypeError(
             "physics must be a PhysicsModel (the declared physics the loop adds effects to), "
