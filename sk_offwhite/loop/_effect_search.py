@@ -358,6 +358,7 @@ one_standard_error, release_programs, fit_output_delta, output_bumps
         u, z = check_record(u, z)
         settings = self.settings(len(u))
         physics, library = _checked_estimator(self.estimator, u.shape[1], z.shape[1])
+        _check_settings_fit_record(settings, physics, len(u))
         search = Search(u, z, settings)
         given = None if _is_auto(self.candidates) else _given(self.candidates)
         self.result_ = run_loop(search, physics, library, given)
@@ -417,6 +418,30 @@ def _selection(cv) -> dict:
         "SequenceSplit(n, train='rest') or SequenceSplit(1, train='forward', test_size=f) "
         f"with 0 < f < 1, got {cv!r}."
     )
+
+
+def _check_settings_fit_record(settings: LoopSettings, physics, n_samples: int) -> None:
+    """Refuse, before any fit, settings that the record or the physics cannot honour:
+    ``delta_states`` outside the declared states or repeated, and held-out blocks too short
+    for ``init_window`` plus two scored samples."""
+    states = list(settings.delta_states or ())
+    n_states = n_declared_states(physics)
+    if any(not 0 <= k < n_states for k in states) or len(set(states)) != len(states):
+        raise ValueError(
+            f"delta_states must be distinct indices of the {n_states} declared states, "
+            f"got {tuple(states)}."
+        )
+    if settings.selection == "cv":
+        block, where = n_samples // settings.n_folds, f"n_folds={settings.n_folds}"
+    else:
+        block = int(n_samples * settings.tail_fraction)
+        where = f"tail_fraction={settings.tail_fraction}"
+    if block < settings.init_window + 2:
+        raise ValueError(
+            f"init_window={settings.init_window} leaves fewer than 2 scored samples in the "
+            f"held-out blocks of {block} samples ({n_samples} samples, {where}): use a "
+            "smaller init_window, fewer folds or a longer record."
+        )
 
 
 def _checked_estimator(estimator, n_inputs: int, n_outputs: int):
