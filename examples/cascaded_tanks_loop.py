@@ -19,12 +19,11 @@ that off).
 from __future__ import annotations
 
 import argparse
-import logging
 import time
 
 import pysindy as ps
+from _study import configure_runtime
 
-from sk_offwhite import enable_compilation_cache, enable_fused_loops
 from sk_offwhite.datasets import cascaded_tanks_physics, load_cascaded_tanks
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models, write_report
 
@@ -91,13 +90,7 @@ def main(argv=None):
         "error (LoopSettings.one_standard_error)",
     )
     args = parser.parse_args(argv)
-    if not args.no_fused_loops:
-        enable_fused_loops()
-    if not args.no_cache:
-        enable_compilation_cache()
-    if not args.quiet:
-        logging.basicConfig(format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
-        logging.getLogger("sk_offwhite").setLevel(logging.INFO)
+    configure_runtime(fused=not args.no_fused_loops, cache=not args.no_cache, log=not args.quiet)
     data = load_cascaded_tanks()
     physics = cascaded_tanks_physics(fixed={"k4": 0.05}, relaxable_exponents=args.relax_exponents)
     settings = LoopSettings(

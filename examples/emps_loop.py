@@ -18,14 +18,14 @@ script runs.
 from __future__ import annotations
 
 import argparse
-import logging
 import time
 
 import jax.numpy as jnp
 import numpy as np
 import pysindy as ps
+from _study import configure_runtime, print_outcome, print_rows
 
-from sk_offwhite import GreyBoxSparseRegressor, enable_compilation_cache, enable_fused_loops
+from sk_offwhite import GreyBoxSparseRegressor
 from sk_offwhite.datasets import emps_physics, emps_reference_physics, load_emps
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models, write_report
 
@@ -102,33 +102,16 @@ def parse(argv):
 
 
 def print_summary(result, rows, reference, init_window, data, elapsed) -> None:
-    for row in rows:
-        if row["protocol"] != "init_window":
-            continue
-        score = f"RMSE {1e3 * row['rmse']:.2f} mm  fit {row['fit_percent']:.1f} %"
-        if row["diverged_at"] is not None:
-            score = f"diverged from sample {row['diverged_at']}"
-        print(f"{row['model']:30s} {row['record']:10s} {score}")
+    print_rows(rows, "mm", 1e3, 2, 10)
     rmse = protocol_rmse_mm(reference, data.u_val, data.z_val, init_window)
     values = ", ".join(f"{k} = {v:.4g}" for k, v in reference.parameters_.items())
     print(f"{'reference law, fitted':30s} validation RMSE {rmse:.2f} mm  ({values})")
-    print("effects added:", ", ".join(e.name for e in result.effects) or "none")
-    print("final parameters:", {k: float(f"{v:.5g}") for k, v in result.final.parameters_.items()})
-    print("cross-validated RMSE (mm):", {k: round(1e3 * v, 3) for k, v in result.cv_errors.items()})
-    print(f"chosen (lowest CV error): {result.chosen}")
-    if result.failures:
-        print("fits that failed:", *result.failures, sep="\n  ")
-    print(f"wall time: {elapsed:.0f} s")
+    print_outcome(result, "mm", 1e3, elapsed)
 
 
 def main(argv=None):
     args = parse(argv)
-    enable_fused_loops()
-    if not args.no_cache:
-        enable_compilation_cache()
-    if not args.quiet:
-        logging.basicConfig(format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
-        logging.getLogger("sk_offwhite").setLevel(logging.INFO)
+    configure_runtime(cache=not args.no_cache, log=not args.quiet)
     data = load_emps()
     init_window = data.protocols["nonlinear_benchmarks"]["init_window"]
     start = time.perf_counter()

@@ -20,12 +20,11 @@ checks that the script runs.
 from __future__ import annotations
 
 import argparse
-import logging
 import time
 
 import pysindy as ps
+from _study import configure_runtime, print_outcome, print_rows
 
-from sk_offwhite import enable_compilation_cache, enable_fused_loops
 from sk_offwhite.datasets import load_silverbox, silverbox_physics
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models, write_report
 
@@ -82,30 +81,13 @@ def parse(argv):
 
 
 def print_summary(result, rows, elapsed) -> None:
-    for row in rows:
-        if row["protocol"] != "init_window":
-            continue
-        score = f"RMSE {1e3 * row['rmse']:.3f} mV  fit {row['fit_percent']:.1f} %"
-        if row["diverged_at"] is not None:
-            score = f"diverged from sample {row['diverged_at']}"
-        print(f"{row['model']:30s} {row['record']:24s} {score}")
-    print("effects added:", ", ".join(e.name for e in result.effects) or "none")
-    print("final parameters:", {k: float(f"{v:.5g}") for k, v in result.final.parameters_.items()})
-    print("cross-validated RMSE (mV):", {k: round(1e3 * v, 3) for k, v in result.cv_errors.items()})
-    print(f"chosen (lowest CV error): {result.chosen}")
-    if result.failures:
-        print("fits that failed:", *result.failures, sep="\n  ")
-    print(f"wall time: {elapsed:.0f} s")
+    print_rows(rows, "mV", 1e3, 3, 24)
+    print_outcome(result, "mV", 1e3, elapsed)
 
 
 def main(argv=None):
     args = parse(argv)
-    enable_fused_loops()
-    if not args.no_cache:
-        enable_compilation_cache()
-    if not args.quiet:
-        logging.basicConfig(format="%(asctime)s %(message)s", datefmt="%H:%M:%S")
-        logging.getLogger("sk_offwhite").setLevel(logging.INFO)
+    configure_runtime(cache=not args.no_cache, log=not args.quiet)
     data = load_silverbox()
     init_window = data.protocols["nonlinear_benchmarks"]["init_window"]
     n_fit = QUICK_SAMPLES if args.quick else args.n_samples
