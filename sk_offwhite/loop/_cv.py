@@ -33,15 +33,29 @@ def held_out_splitter(settings: LoopSettings) -> SequenceSplit:
 
 def held_out_splits(settings: LoopSettings, n_samples: int) -> list:
     """``(train, test)`` index pairs of [`held_out_splitter`][sk_offwhite.loop.held_out_splitter]
-    on a record of ``n_samples``; a held-out tail must be longer than ``init_window``."""
-    splits = list(held_out_splitter(settings).split(np.zeros((n_samples, 1))))
-    if settings.selection == "tail":
-        train, test = splits[0]
-        if min(len(train), len(test)) <= settings.init_window:
-            raise ValueError(
-                f"tail_fraction={settings.tail_fraction} of {n_samples} samples leaves a block "
-                f"no longer than init_window={settings.init_window}."
-            )
+    on a record of ``n_samples``; every held-out block must leave two scored samples after
+    ``init_window``, and a held-out tail's past must be longer than ``init_window``."""
+    where = (
+        f"n_folds={settings.n_folds}"
+        if settings.selection == "cv"
+        else f"tail_fraction={settings.tail_fraction}"
+    )
+    try:
+        splits = list(held_out_splitter(settings).split(np.zeros((n_samples, 1))))
+    except ValueError as error:
+        raise ValueError(f"{where}: {error}") from error
+    shortest = min(len(test) for _, test in splits)
+    if shortest < settings.init_window + 2:
+        raise ValueError(
+            f"init_window={settings.init_window} leaves fewer than 2 scored samples in a "
+            f"held-out block of {shortest} samples ({n_samples} samples, {where}): use a "
+            "smaller init_window, fewer folds or a longer record."
+        )
+    if settings.selection == "tail" and len(splits[0][0]) <= settings.init_window:
+        raise ValueError(
+            f"tail_fraction={settings.tail_fraction} of {n_samples} samples leaves a past "
+            f"no longer than init_window={settings.init_window}."
+        )
     return splits
 
 

@@ -46,7 +46,7 @@ from ..model._physics import measured_states
 from ..model_selection import SequenceSplit
 from ._candidates import Candidate
 from ._corrections import corrected_fits, scored_delta
-from ._cv import structure_cv
+from ._cv import held_out_splits, structure_cv
 from ._evidence import (
     delta_hypotheses,
     fit_declared,
@@ -423,7 +423,7 @@ def _selection(cv) -> dict:
 def _check_settings_fit_record(settings: LoopSettings, physics, n_samples: int) -> None:
     """Refuse, before any fit, settings that the record or the physics cannot honour:
     ``delta_states`` outside the declared states or repeated, and held-out blocks too short
-    for ``init_window`` plus two scored samples."""
+    for ``init_window`` (`held_out_splits`)."""
     states = list(settings.delta_states or ())
     n_states = n_declared_states(physics)
     if any(not 0 <= k < n_states for k in states) or len(set(states)) != len(states):
@@ -431,17 +431,7 @@ def _check_settings_fit_record(settings: LoopSettings, physics, n_samples: int) 
             f"delta_states must be distinct indices of the {n_states} declared states, "
             f"got {tuple(states)}."
         )
-    if settings.selection == "cv":
-        block, where = n_samples // settings.n_folds, f"n_folds={settings.n_folds}"
-    else:
-        block = int(n_samples * settings.tail_fraction)
-        where = f"tail_fraction={settings.tail_fraction}"
-    if block < settings.init_window + 2:
-        raise ValueError(
-            f"init_window={settings.init_window} leaves fewer than 2 scored samples in the "
-            f"held-out blocks of {block} samples ({n_samples} samples, {where}): use a "
-            "smaller init_window, fewer folds or a longer record."
-        )
+    held_out_splits(settings, n_samples)
 
 
 def _checked_estimator(estimator, n_inputs: int, n_outputs: int):

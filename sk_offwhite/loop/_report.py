@@ -33,10 +33,7 @@ def _score_cells(row: dict) -> str:
 
 def _json_rows(rows: list[dict]) -> list[dict]:
     """``rows`` with the scores of diverged simulations as ``null`` (strict JSON)."""
-    return [
-        {k: None if isinstance(v, float) and not np.isfinite(v) else v for k, v in r.items()}
-        for r in rows
-    ]
+    return _finite(rows)
 
 
 def _figure(figsize, **grid):
@@ -334,14 +331,15 @@ def write_report(result, rows, records: dict, directory, *, title: str, notes=()
     lines += [f"![outputs {n}](outputs_{n}.png)" for n in records] + [""]
     (out / "report.md").write_text("\n".join(lines), encoding="utf-8")
     facts = results_facts(result, rows, facts, verdict)
-    table = json.dumps(facts, indent=2, allow_nan=False, default=_plain)
+    table = json.dumps(_finite(facts), indent=2, allow_nan=False, default=_plain)
     (out / "results.json").write_text(table, encoding="utf-8")
     return out / "report.md"
 
 
 def results_facts(result, rows, parameters: dict, verdict: str) -> dict:
-    """What the report says, as plain data: the scores, the chosen model, the effects with
-    their descriptions, the parameters, the CV errors, failures, notes, warnings, timings."""
+    """What the report says, as data (`_finite` makes it strict JSON): the scores, the
+    chosen model, the effects with their descriptions, the parameters, the CV errors,
+    failures, notes, warnings, timings."""
     values = result.final.parameters_
     effects = [
         {
@@ -352,13 +350,13 @@ def results_facts(result, rows, parameters: dict, verdict: str) -> dict:
         for effect in result.effects
     ]
     return {
-        "rows": _json_rows(rows),
+        "rows": rows,
         "chosen": result.chosen,
         "effects": effects,
-        "parameters": _finite(parameters),
+        "parameters": parameters,
         "identifiability": verdict,
-        "cv_errors": _finite(dict(result.cv_errors)),
-        "selection": [[name, _finite(score)] for name, score in result.selection],
+        "cv_errors": dict(result.cv_errors),
+        "selection": [list(row) for row in result.selection],
         "failures": list(result.failures),
         "notes": list(result.notes),
         "warnings": dict(result.warnings),
@@ -370,6 +368,8 @@ def _finite(value):
     """``value`` with every non-finite float as ``None`` (strict JSON), nested."""
     if isinstance(value, dict):
         return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
     if isinstance(value, float | np.floating):
         return float(value) if np.isfinite(value) else None
     return value
