@@ -3,11 +3,15 @@
 from __future__ import annotations
 
 import json
+import math
 import warnings
+from dataclasses import dataclass, field
+from numbers import Real
 from pathlib import Path
 
 import numpy as np
 
+from .._validation import check_record
 from ..certify import UnidentifiableWarning, identifiability
 from ._evidence import analyse_model
 from ._hypotheses import _signals
@@ -16,8 +20,114 @@ from ._scoring import MODEL_LABELS, _protocol_metrics
 __all__ = ["write_report"]
 
 
-def _table(rows: list[dict]) -> list[str]:
-    lines = ["| model | record | protocol | RMSE | fit % |", "|---|---|---|---|---|"]
+@dataclass(frozen=True)
+class _Units:
+    """The units a report is written in: a unit per input or output name and the seconds
+    per sample (``None``: time in samples)."""
+
+    units: dict = field(default_factory=dict)
+    sampling_time: float | None = None
+
+    def times(self, n: int) -> np.ndarray:
+        """The x-axis of a record of ``n`` samples: ``k * sampling_time``, or ``k``."""
+        k = np.arange(n, dtype=float)
+        return k if self.sampling_time is None else k * self.sampling_time
+
+    @property
+    def time_label(self) -> str:
+        return "sample" if self.sampling_time is None else "time [s]"
+
+    def label(self, text: str, name: str | None = None) -> str:
+        """``text`` followed by the unit of ``name`` (``text`` itself by default), if any."""
+        unit = self.units.get(text if name is None else name)
+        return text if unit is None else f"{text} [{unit}]"
+
+    def rmse(self, outputs: list[str]) -> str:
+        """``" [unit]"`` when every output has that one unit (an RMSE's unit), else ``""``."""
+        found = {self.units.get(name) for name in outputs}
+        return f" [{found.pop()}]" if len(found) == 1 and None not in found else ""
+
+    def outputs(self, result) -> str:
+        """``"; output `x2` in V"`` for the outputs with a unit (``""`` for none)."""
+        given = [f"`{n}` in {self.units[n]}" for n in _names(result) if n in self.units]
+        return f"; output {', '.join(given)}" if given else ""
+
+    def sentence(self, result) -> str:
+        """The report's one statement of its units."""
+        names = [*result.physics.input_names, *_names(result)]
+        given = ", ".join(f"`{n}` in {self.units[n]}" for n in names if n in self.units)
+        time = (
+            "time in samples"
+            if self.sampling_time is None
+            else f"time in s (sampling time {self.sampling_time:g} s)"
+        )
+        return (
+            f"Units: {given or 'none given for the inputs and outputs'}; {time}. Simulation "
+            "errors (RMSE) are in the output's unit. States and fitted parameters are in the "
+            "units of the declared physics: a state is in an output's unit only where the "
+            "physics reads that output from it unscaled."
+        )
+
+
+def _checked_records(records) -> dict:
+    """``records`` as a dict of validated ``(u, z)`` pairs holding ``"estimation"``, or an
+    error naming ``records`` and what is wrong."""
+    if not isinstance(records, dict):
+        raise TypeError(
+            "records must be a dict of record names to (u, z) pairs, for example "
+            f"{{'estimation': (u_est, z_est)}}, got {type(records).__name__}."
+        )
+    if "estimation" not in records:
+        raise ValueError(
+            "records must hold an 'estimation' entry, the (u, z) record the loop was fitted "
+            f"on; got the entries {sorted(map(str, records))}."
+        )
+    checked = {}
+    for name, pair in records.items():
+        if not isinstance(pair, tuple | list) or len(pair) != 2:
+            raise ValueError(f"records[{name!r}] must be a (u, z) pair of arrays.")
+        try:
+            checked[name] = check_record(*pair)
+        except (TypeError, ValueError) as error:
+            raise type(error)(f"records[{name!r}]: {error}") from error
+    return checked
+
+
+def _checked_units(units, physics) -> dict:
+    """``units`` as a dict of input or output name to unit string (``{}`` for ``None``)."""
+    if units is None:
+        return {}
+    if not isinstance(units, dict):
+        raise TypeError(f"units must be a dict of name to unit, got {type(units).__name__}.")
+    known = [*physics.input_names, *(physics.output_names or ())]
+    unknown = [name for name in units if name not in known]
+    if unknown:
+        raise ValueError(
+            f"units names {unknown}, which are neither inputs nor outputs of the physics; "
+            f"known names: {known}."
+        )
+    bad = {name: unit for name, unit in units.items() if not isinstance(unit, str) or not unit}
+    if bad:
+        raise TypeError(f"units must map each name to a non-empty string, got {bad}.")
+    return dict(units)
+
+
+def _checked_sampling_time(sampling_time) -> float | None:
+    """``sampling_time`` as a positive finite float (seconds per sample), or ``None``."""
+    if sampling_time is None:
+        return None
+    if isinstance(sampling_time, bool) or not isinstance(sampling_time, Real):
+        raise TypeError(
+            f"sampling_time must be a number of seconds per sample, got {sampling_time!r}."
+        )
+    if not (math.isfinite(sampling_time) and sampling_time > 0):
+        raise ValueError(f"sampling_time must be finite and > 0 seconds, got {sampling_time!r}.")
+    return float(sampling_time)
+
+
+def _table(rows: list[dict], unit: str = "") -> list[str]:
+    """The scores of ``rows``; ``unit`` (``" [V]"`` or ``""``) follows the RMSE header."""
+    lines = [f"| model | record | protocol | RMSE{unit} | fit % |", "|---|---|---|---|---|"]
     lines += [
         f"| {r['model']} | {r['record']} | {r['protocol']} | {_score_cells(r)} |" for r in rows
     ]
@@ -46,23 +156,26 @@ def _figure(figsize, **grid):
     return fig, fig.subplots(**grid)
 
 
-def _figure_outputs(result, u, z, path: Path, title: str) -> None:
+def _figure_outputs(result, u, z, path: Path, title: str, axis: _Units) -> None:
+    """The measured first output, each model's simulation of it and their residuals."""
     fig, axes = _figure((9, 5.5), nrows=2, ncols=1, sharex=True)
     z = np.asarray(z, float).reshape(len(u), -1)[:, 0]
-    axes[0].plot(z, "k", lw=1.2, label="measured")
+    time = axis.times(len(z))
+    axes[0].plot(time, z, "k", lw=1.2, label="measured")
     for key in dict.fromkeys(("baseline", "final", result.chosen)):
         z_sim = getattr(result, key).simulate(u).outputs[:, 0]
-        axes[0].plot(z_sim, lw=1, label=MODEL_LABELS[key])
-        axes[1].plot(z - z_sim, lw=1, label=MODEL_LABELS[key])
+        axes[0].plot(time, z_sim, lw=1, label=MODEL_LABELS[key])
+        axes[1].plot(time, z - z_sim, lw=1, label=MODEL_LABELS[key])
     axes[0].set_title(title)
     axes[0].legend(loc="best", fontsize=8)
-    axes[1].set_ylabel("residual")
-    axes[1].set_xlabel("sample")
+    axes[0].set_ylabel(axis.label(_names(result)[0]))
+    axes[1].set_ylabel(axis.label("residual", _names(result)[0]))
+    axes[1].set_xlabel(axis.time_label)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
 
 
-def _figure_correction(result, u, path: Path) -> bool:
+def _figure_correction(result, u, path: Path, axis: _Units) -> bool:
     """Each hypothesis' correction against the variable it concentrates on."""
     hypotheses = [h for h in result.hypotheses if h.correction is not None]
     if not hypotheses or result.evidence is None:
@@ -74,7 +187,7 @@ def _figure_correction(result, u, path: Path) -> bool:
     for ax, hyp in zip(np.atleast_1d(axes), hypotheses, strict=True):
         variable = hyp.region[0] if hyp.region else (hyp.variables or list(signals))[0]
         ax.plot(signals[variable], hyp.correction, ".", ms=2)
-        ax.set_xlabel(f"{variable} (simulated)")
+        ax.set_xlabel(axis.label(f"{variable} (simulated)", variable))
         what = "linearised δ" if hyp.source == "evidence" else "fitted δ"
         ax.set_ylabel(f"{what}, {hyp.equation} equation")
     fig.tight_layout()
@@ -117,9 +230,15 @@ def parameter_facts(result, u, z) -> tuple[dict, str]:
     return facts, report.verdict
 
 
-def _parameter_lines(facts: dict, verdict: str) -> list[str]:
-    """Fitted parameters with their standard errors, status and the identifiability verdict."""
-    lines = ["| augmented physics | value | standard error | status |", "|---|---|---|---|"]
+def _parameter_lines(facts: dict, verdict: str, outputs: str = "") -> list[str]:
+    """Fitted parameters with their standard errors, status and the identifiability verdict;
+    ``outputs`` names the outputs' units (see `_Units.outputs`)."""
+    lines = [
+        f"Values in the units of the declared physics{outputs}.",
+        "",
+        "| augmented physics | value | standard error | status |",
+        "|---|---|---|---|",
+    ]
     for name, fact in facts.items():
         error = fact["standard_error"]
         shown = "—" if error is None else f"{error:.3g}"
@@ -153,7 +272,7 @@ def _hypothesis_lines(result) -> list[str]:
         ]
         lines.append("")
     if not result.hypotheses:
-        return ["- No dictionary term explains what the declared physics misses."]
+        return ["- No dictionary term explains what the declared physics misses.", ""]
     return lines
 
 
@@ -161,9 +280,10 @@ def _alone_cell(alone: dict, name: str) -> str:
     return f"{alone[name]:.4g}" if name in alone else "not fitted (max_candidates)"
 
 
-def _candidate_lines(result) -> list[str]:
+def _candidate_lines(result, unit: str = "") -> list[str]:
     alone = dict(result.single_fits)
-    lines = ["| candidate effect | why | estimation RMSE fitted alone |", "|---|---|---|"]
+    head = f"| candidate effect | why | estimation RMSE{unit} fitted alone |"
+    lines = [head, "|---|---|---|"]
     lines += [
         f"| `{c.effect.name}` | {c.reason} | {_alone_cell(alone, c.effect.name)} |"
         for c in result.candidates
@@ -171,12 +291,13 @@ def _candidate_lines(result) -> list[str]:
     return lines
 
 
-def _selection_lines(result, records: dict) -> list[str]:
+def _selection_lines(result, records: dict, units: _Units) -> list[str]:
     """The CV trail of the effect sets, each also scored on the other records (its fit on
     the estimation record, ``init_window`` protocol): what every structural step did."""
     others = [name for name in records if name != "estimation"]
-    head = "| model | cross-validated RMSE (estimation record) |"
-    lines = [head + "".join(f" {n} RMSE (init_window) |" for n in others)]
+    unit = units.rmse(_names(result))
+    head = f"| model | cross-validated RMSE{unit} (estimation record) |"
+    lines = [head + "".join(f" {n} RMSE{unit} (init_window) |" for n in others)]
     lines += ["|---|---|" + "---|" * len(others)]
     for name, score in result.selection:
         cells = [_set_score(result.set_fits.get(name), *records[n]) for n in others]
@@ -187,7 +308,10 @@ def _selection_lines(result, records: dict) -> list[str]:
         + ", ".join(f"{k} = {values[k]:.4g}" for k in e.parameters() if k in values)
         for e in result.effects
     ]
-    return lines + ["", "Effects added:", ""] + (chosen or ["- none improved the CV score"])
+    added = (
+        f"Effects added (parameters in the units of the declared physics{units.outputs(result)}):"
+    )
+    return lines + ["", added, ""] + (chosen or ["- none improved the CV score"])
 
 
 def _set_score(est, u, z, init_window: int = 50) -> str:
@@ -208,11 +332,12 @@ def _validation_rmse(rows: list[dict], label: str) -> str:
     return "—"
 
 
-def _choice_lines(result, rows: list[dict]) -> list[str]:
+def _choice_lines(result, rows: list[dict], unit: str = "") -> list[str]:
     """Cross-validated error of every final model, its validation error beside it (only
     scored: the choice is the CV error's), and the one chosen."""
     lines = [
-        "| model | cross-validated RMSE (estimation record) | validation RMSE (init_window) |",
+        f"| model | cross-validated RMSE{unit} (estimation record) "
+        f"| validation RMSE{unit} (init_window) |",
         "|---|---|---|",
     ]
     for key, cv in result.cv_errors.items():
@@ -298,25 +423,92 @@ def _residual_section(result, records, label_key) -> list[str]:
     return [f"### {MODEL_LABELS[label_key]}, estimation record", "", report.summary(), ""]
 
 
-def write_report(result, rows, records: dict, directory, *, title: str, notes=()) -> Path:
-    """Write ``report.md``, figures and ``results.json`` into ``directory``; return the path."""
+def write_report(
+    result,
+    rows,
+    records: dict,
+    directory,
+    *,
+    title: str,
+    notes=(),
+    units: dict[str, str] | None = None,
+    sampling_time: float | None = None,
+) -> Path:
+    r"""Write ``report.md``, its figures and ``results.json`` into ``directory``.
+
+    Parameters
+    ----------
+    result : LoopResult
+        What [`close_the_loop`][sk_offwhite.loop.close_the_loop] found.
+    rows : list of dict
+        The scores of [`score_models`][sk_offwhite.loop.score_models] on ``records``.
+    records : dict
+        Record name to its ``(u, z)`` pair; it must hold ``"estimation"``, the record the
+        loop was fitted on. Each record gets a figure of its outputs.
+    directory : str or path
+        Where the report goes (made if missing).
+    title : str
+        The report's title.
+    notes : sequence of str, default=()
+        Lines written under the title (data, protocol, anything the reader needs first).
+    units : dict of str to str, default=None
+        The unit of each input and output, by the physics' ``input_names`` and
+        ``output_names`` (for example ``{"u": "V", "x2": "V"}``); names left out have none.
+        The RMSE headers and the figures' axes name the outputs' unit. States and fitted
+        parameters are in the units of the declared physics, which the report says once.
+    sampling_time : float, default=None
+        Seconds per sample: the figures' x-axis is then the time $k\,T_s$ in seconds,
+        otherwise the sample index $k$.
+
+    Returns
+    -------
+    Path
+        The path of ``report.md``. ``results.json`` holds the report's facts, with
+        ``units`` and ``sampling_time`` as given.
+
+    Raises
+    ------
+    TypeError, ValueError
+        Naming ``records``, ``units`` or ``sampling_time`` when it is not what is said above,
+        before anything is written.
+    """
+    records = _checked_records(records)
+    axis = _Units(_checked_units(units, result.physics), _checked_sampling_time(sampling_time))
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
     for name, (u, z) in records.items():
-        _figure_outputs(result, u, z, out / f"outputs_{name}.png", f"{title}: {name} record")
-    has_delta_fig = _figure_correction(result, records["estimation"][0], out / "correction.png")
-    lines = [f"# {title}: closed-loop report", "", *notes, "", "## Simulation errors", ""]
-    lines += _table(rows) + ["", "## Residual before and after", ""]
+        figure = out / f"outputs_{name}.png"
+        _figure_outputs(result, u, z, figure, f"{title}: {name} record", axis)
+    u_est = records["estimation"][0]
+    has_delta_fig = _figure_correction(result, u_est, out / "correction.png", axis)
+    facts, verdict = parameter_facts(result, *records["estimation"])
+    lines = _report_lines(result, rows, records, axis, (facts, verdict, has_delta_fig))
+    head = [f"# {title}: closed-loop report", "", *notes, "", axis.sentence(result), ""]
+    (out / "report.md").write_text("\n".join(head + lines), encoding="utf-8")
+    facts = results_facts(result, rows, facts, verdict)
+    facts.update(units=dict(axis.units), sampling_time=axis.sampling_time)
+    table = json.dumps(_finite(facts), indent=2, allow_nan=False, default=_plain)
+    (out / "results.json").write_text(table, encoding="utf-8")
+    return out / "report.md"
+
+
+def _report_lines(result, rows, records, axis: _Units, found) -> list[str]:
+    """The report's sections under its title; ``found`` is ``(parameter facts,
+    identifiability verdict, whether the correction figure was drawn)``."""
+    facts, verdict, has_delta_fig = found
+    unit = axis.rmse(_names(result))
+    lines = (
+        ["## Simulation errors", ""] + _table(rows, unit) + ["", "## Residual before and after", ""]
+    )
     lines += _residual_section(result, records, "baseline")
     lines += _residual_section(result, records, "final")
     lines += ["## What the declared physics cannot explain", ""]
     lines += _hypothesis_lines(result)
     lines += [f"- {note}" for note in result.notes] + ([""] if result.notes else [])
     lines += ["![correction](correction.png)", ""] if has_delta_fig else []
-    lines += ["## Effects tried and added", ""] + _candidate_lines(result) + [""]
-    lines += _selection_lines(result, records) + [""]
-    facts, verdict = parameter_facts(result, *records["estimation"])
-    lines += ["## Parameters", ""] + _parameter_lines(facts, verdict)
+    lines += ["## Effects tried and added", ""] + _candidate_lines(result, unit) + [""]
+    lines += _selection_lines(result, records, axis) + [""]
+    lines += ["## Parameters", ""] + _parameter_lines(facts, verdict, axis.outputs(result))
     if result.with_delta is not None:
         lines += ["## Sparse correction on the declared physics", ""]
         lines += _gamma_lines(result.gamma_path, result.with_delta.gamma)
@@ -324,16 +516,12 @@ def write_report(result, rows, records: dict, directory, *, title: str, notes=()
     lines += _remaining_lines(result)
     lines += ["## Correction of the output map on the augmented physics", ""]
     lines += _output_lines(result)
-    lines += ["## Model chosen (lowest cross-validated error)", ""] + _choice_lines(result, rows)
+    lines += ["## Model chosen (lowest cross-validated error)", ""]
+    lines += _choice_lines(result, rows, unit)
     lines += ["## Fits that failed", ""] + _failure_lines(result)
     lines += ["## Warnings of the search's internal fits", ""] + _warning_lines(result)
     lines += ["## Time per stage", ""] + _timing_lines(result)
-    lines += [f"![outputs {n}](outputs_{n}.png)" for n in records] + [""]
-    (out / "report.md").write_text("\n".join(lines), encoding="utf-8")
-    facts = results_facts(result, rows, facts, verdict)
-    table = json.dumps(_finite(facts), indent=2, allow_nan=False, default=_plain)
-    (out / "results.json").write_text(table, encoding="utf-8")
-    return out / "report.md"
+    return lines + [f"![outputs {n}](outputs_{n}.png)" for n in records] + [""]
 
 
 def results_facts(result, rows, parameters: dict, verdict: str) -> dict:

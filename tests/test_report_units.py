@@ -1,0 +1,138 @@
+"""The closed-loop report in the units given to it, and its refusals of bad arguments.
+
+The result is assembled from one short physics-only fit (no loop run): the report only
+reads the result's fields.
+"""
+
+import json
+
+import numpy as np
+import pytest
+
+from sk_offwhite import GreyBoxSparseRegressor
+from sk_offwhite.datasets import make_leaky_tank
+from sk_offwhite.loop import score_models, write_report
+from sk_offwhite.loop._report import _Units
+from sk_offwhite.loop._result import LoopResult
+
+UNITS = {"u": "m3/s", "x": "m"}
+
+
+@pytest.fixture(scope="module")
+def report_inputs():
+    data = make_leaky_tank(n_samples=200, random_state=0)
+    est = GreyBoxSparseRegressor(data.physics, max_iter=20).fit(data.u, data.z)
+    result = LoopResult(
+        physics=data.physics,
+        augmented_physics=data.physics,
+        baseline=est,
+        with_delta=None,
+        final=est,
+        final_with_delta=None,
+        gamma_path=None,
+        hypotheses=[],
+        range_facts=[],
+        candidates=[],
+        selection=[("declared physics", 0.1)],
+        set_fits={"declared physics": est},
+        cv_errors={"baseline": 0.1, "final": 0.1},
+        chosen="final",
+    )
+    records = {"estimation": (data.u, data.z), "validation": (data.u_val, data.z_val)}
+    return result, score_models(result, records), records
+
+
+@pytest.fixture(scope="module")
+def written(report_inputs, tmp_path_factory):
+    out = tmp_path_factory.mktemp("report")
+    result, rows, records = report_inputs
+    path = write_report(
+        result, rows, records, out, title="Leaky tank", units=UNITS, sampling_time=2.0
+    )
+    return path.read_text(), json.loads((out / "results.json").read_text())
+
+
+def test_rmse_headers_name_the_output_unit(written):
+    text, _ = written
+    assert "| model | record | protocol | RMSE [m] | fit % |" in text
+    assert "| model | cross-validated RMSE [m] (estimation record) |" in text
+    assert "validation RMSE [m] (init_window) |" in text
+
+
+def test_units_are_stated_once_with_states_and_parameters_in_the_physics_units(written):
+    text, _ = written
+    assert "Units: `u` in m3/s, `x` in m; time in s (sampling time 2 s)." in text
+    assert text.count("States and fitted parameters are in the units of the declared") == 1
+    assert "Values in the units of the declared physics; output `x` in m." in text
+    assert "Effects added (parameters in the units of the declared physics; output `x` in m)" in (
+        text
+    )
+
+
+def test_results_json_holds_the_units_and_sampling_time(written):
+    _, facts = written
+    assert facts["units"] == UNITS and facts["sampling_time"] == 2.0
+
+
+def test_without_units_the_report_says_so_and_headers_are_bare(report_inputs, tmp_path):
+    result, rows, records = report_inputs
+    text = write_report(result, rows, {"estimation": records["estimation"]}, tmp_path, title="t")
+    text = text.read_text()
+    assert "| RMSE | fit % |" in text and "time in samples" in text
+    facts = json.loads((tmp_path / "results.json").read_text())
+    assert facts["units"] == {} and facts["sampling_time"] is None
+
+
+def test_the_time_axis_is_in_seconds_with_a_sampling_time():
+    with_time, without = _Units({"x": "m"}, 0.5), _Units()
+    assert with_time.time_label == "time [s]" and without.time_label == "sample"
+    np.testing.assert_allclose(with_time.times(3), [0.0, 0.5, 1.0])
+    np.testing.assert_allclose(without.times(3), [0.0, 1.0, 2.0])
+    assert with_time.label("x") == "x [m]" and with_time.label("residual", "x") == "residual [m]"
+    assert without.label("x") == "x"
+
+
+def test_an_rmse_unit_needs_one_unit_for_every_output():
+    assert _Units({"a": "V", "b": "V"}).rmse(["a", "b"]) == " [V]"
+    assert _Units({"a": "V", "b": "A"}).rmse(["a", "b"]) == ""
+    assert _Units({"a": "V"}).rmse(["a", "b"]) == ""
+
+
+@pytest.mark.parametrize(
+    ("records", "error", "match"),
+    [
+        (
+            lambda r: {"validation": r["validation"]},
+            ValueError,
+            "records must hold an 'estimation'",
+        ),
+        (lambda r: [r["estimation"]], TypeError, "records must be a dict"),
+        (lambda r: {"estimation": r["estimation"][0]}, ValueError, r"records\['estimation'\]"),
+    ],
+)
+def test_records_without_an_estimation_pair_are_refused(
+    report_inputs, tmp_path, records, error, match
+):
+    result, rows, good = report_inputs
+    with pytest.raises(error, match=match):
+        write_report(result, rows, records(good), tmp_path, title="t")
+    assert not list(tmp_path.iterdir())  # refused before anything is written
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "match"),
+    [
+        ({"sampling_time": 0.0}, ValueError, "sampling_time must be finite and > 0"),
+        ({"sampling_time": float("nan")}, ValueError, "sampling_time"),
+        ({"sampling_time": "4"}, TypeError, "sampling_time must be a number"),
+        ({"sampling_time": True}, TypeError, "sampling_time"),
+        ({"units": ["V"]}, TypeError, "units must be a dict"),
+        ({"units": {"y": "V"}}, ValueError, r"units names \['y'\]"),
+        ({"units": {"x": 1}}, TypeError, "units must map each name to a non-empty string"),
+    ],
+)
+def test_bad_units_and_sampling_time_are_refused(report_inputs, tmp_path, kwargs, error, match):
+    result, rows, records = report_inputs
+    with pytest.raises(error, match=match):
+        write_report(result, rows, records, tmp_path, title="t", **kwargs)
+    assert not list(tmp_path.iterdir())
