@@ -81,6 +81,9 @@ def test_load_cascaded_tanks_layout():
     assert data.sampling_time == 4.0
     np.testing.assert_array_equal(data.time, 4.0 * np.arange(1024))
     assert data.input_names == ["u"] and data.output_names == ["x2"]
+    assert data.units == {"u": "V", "x2": "V"}
+    physics = cascaded_tanks_physics()
+    assert set(data.units) == {*physics.input_names, *physics.output_names}
     assert data.saturation_level == 10.0
     assert data.protocols["original"]["init_window"] == 0
     assert data.protocols["nonlinear_benchmarks"]["init_window"] == 50
@@ -308,6 +311,39 @@ def test_generators_validate_arguments():
         make_friction_oscillator(noise_std=-1.0)
     with pytest.raises(ValueError, match="noise_bound"):
         make_vehicle_lateral(noise_bound=float("nan"))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "match"),
+    [
+        ({"noise_std": "abc"}, TypeError, "noise_std must be a finite number >= 0, got 'abc'"),
+        ({"noise_std": True}, TypeError, "noise_std"),
+        ({"process_noise_std": "0.1"}, TypeError, "process_noise_std"),
+        ({"random_state": "x"}, ValueError, "random_state must be None, an int"),
+        ({"random_state": -1}, ValueError, "random_state"),
+        ({"overflow_fraction": 2.0}, ValueError, r"overflow_fraction must be a number in \[0, 1\]"),
+        ({"overflow_fraction": -0.1}, ValueError, "overflow_fraction"),
+        ({"overflow_fraction": "half"}, TypeError, "overflow_fraction"),
+    ],
+)
+def test_tanks_arguments_are_refused_by_name(kwargs, error, match):
+    with pytest.raises(error, match=match):
+        make_cascaded_tanks(n_samples=50, **kwargs)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_every_generator_names_a_bad_seed_and_noise(name):
+    noise = "noise_bound" if name == "vehicle" else "noise_std"
+    with pytest.raises(ValueError, match="random_state"):
+        GENERATORS[name](n_samples=50, random_state="x")
+    with pytest.raises(TypeError, match=noise):
+        GENERATORS[name](n_samples=50, **{noise: "abc"})
+
+
+@pytest.mark.parametrize("fraction", [0.0, 1.0])
+def test_an_overflow_fraction_at_either_end_is_accepted(fraction):
+    data = make_cascaded_tanks(n_samples=50, overflow_fraction=fraction, random_state=0)
+    assert data.hidden_effect["function"].params["fraction"] == fraction
 
 
 def test_process_noise_is_recorded():

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 import numpy as np
-from sklearn.utils import Bunch, check_random_state
+from sklearn.utils import Bunch
 
 from sk_offwhite.datasets._common import (
     _bunch,
     _check_n_samples,
+    _check_random_state,
     _gaussian,
     _gaussian_noise,
     _memory_effect,
@@ -112,7 +113,7 @@ def make_backlash_servo(
     import pysindy as ps
 
     n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
-    rng = check_random_state(random_state)
+    rng = _check_random_state(random_state)
     (est, est_noise, played), (val, val_noise, played_val) = (
         _servo_record(rng, n, stds) for _ in range(2)
     )

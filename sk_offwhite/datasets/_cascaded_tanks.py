@@ -281,6 +281,10 @@ def load_cascaded_tanks() -> Bunch:
             ``Ts = 4.0`` s.
         ``input_names``, ``output_names`` : list of str
             ``["u"]`` and ``["x2"]``.
+        ``units`` : dict
+            ``{"u": "V", "x2": "V"}``: the pump voltage and the raw level-sensor voltage,
+            by the names of [`cascaded_tanks_physics`][sk_offwhite.datasets.cascaded_tanks_physics]
+            (its states are in the sensor's volts, since ``z = x2``).
         ``saturation_level`` : float
             10.0 V, where the lower-tank sensor saturates.
         ``protocols`` : dict
@@ -310,6 +314,7 @@ def load_cascaded_tanks() -> Bunch:
         sampling_time=SAMPLING_TIME,
         input_names=["u"],
         output_names=["x2"],
+        units={"u": "V", "x2": "V"},
         saturation_level=SATURATION_LEVEL,
         protocols={name: dict(spec) for name, spec in _PROTOCOLS.items()},
         published_results=_published_results(),

@@ -9,11 +9,12 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from numbers import Real
 
 import jax
 import jax.numpy as jnp
 import numpy as np
-from sklearn.utils import Bunch
+from sklearn.utils import Bunch, check_random_state
 
 from sk_offwhite.model._physics import PhysicsModel
 
@@ -101,11 +102,39 @@ def _check_n_samples(n_samples) -> int:
     return int(n_samples)
 
 
+def _check_number(name: str, value, what: str) -> float:
+    """``value`` as a float, or a ``TypeError`` naming ``name`` (a string, a boolean or
+    anything that is not a real number); ``what`` says what it must be."""
+    if isinstance(value, bool) or not isinstance(value, Real):
+        raise TypeError(f"{name} must be {what}, got {value!r}.")
+    return float(value)
+
+
 def _check_scale(name: str, value) -> float:
-    value = float(value)
+    """A standard deviation or bound: a finite number >= 0."""
+    value = _check_number(name, value, "a finite number >= 0")
     if not (np.isfinite(value) and value >= 0):
         raise ValueError(f"{name} must be a finite number >= 0, got {value!r}.")
     return value
+
+
+def _check_fraction(name: str, value) -> float:
+    """A fraction: a number in ``[0, 1]``."""
+    value = _check_number(name, value, "a number in [0, 1]")
+    if not 0.0 <= value <= 1.0:
+        raise ValueError(f"{name} must be a number in [0, 1], got {value!r}.")
+    return value
+
+
+def _check_random_state(random_state) -> np.random.RandomState:
+    """scikit-learn's ``check_random_state``, its refusal naming ``random_state``."""
+    try:
+        return check_random_state(random_state)
+    except (TypeError, ValueError) as error:
+        raise ValueError(
+            "random_state must be None, an int in [0, 2**32 - 1] or a numpy RandomState, "
+            f"got {random_state!r} ({error})"
+        ) from error
 
 
 def _effect_sign(effect: Callable, x: np.ndarray, u: np.ndarray, equation: int) -> int:

@@ -8,11 +8,12 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
-from sklearn.utils import Bunch, check_random_state
+from sklearn.utils import Bunch
 
 from sk_offwhite.datasets._common import (
     _bunch,
     _check_n_samples,
+    _check_random_state,
     _gaussian,
     _gaussian_noise,
     _memory_effect,
@@ -122,7 +123,7 @@ def _lagged_dataset(plant: _LaggedPlant, n_samples, noise_std, random_state, pro
     import pysindy as ps
 
     n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
-    rng = check_random_state(random_state)
+    rng = _check_random_state(random_state)
     (est, est_noise, seen), (val, val_noise, seen_val) = (
         _lagged_record(plant, rng, n, stds) for _ in range(2)
     )

@@ -22,10 +22,12 @@ from dataclasses import dataclass, replace
 
 import jax.numpy as jnp
 import numpy as np
-from sklearn.utils import Bunch, check_random_state
+from sklearn.utils import Bunch
 
 from sk_offwhite.datasets._common import (
     _check_n_samples,
+    _check_number,
+    _check_random_state,
     _multisine,
     _noise_stds,
     _simple_dataset,
@@ -71,7 +73,7 @@ def _generate(spec: _Generator, n_samples, noise_std, random_state, process_nois
     """Validate the arguments, draw the two multisine inputs and simulate."""
     n = _check_n_samples(n_samples)
     stds = _noise_stds(spec.noise_std if noise_std is None else noise_std, process_noise_std)
-    rng = check_random_state(random_state)
+    rng = _check_random_state(random_state)
     inputs = [
         np.maximum(
             spec.input_mean + spec.input_std * _multisine(rng, n, spec.band), spec.input_floor
@@ -338,6 +340,7 @@ def make_duffing_oscillator(
 
 def _duffing(exponent: float) -> _Generator:
     """The Duffing generator with a spring of power ``exponent`` (3: `_DUFFING`)."""
+    exponent = _check_number("exponent", exponent, "a number in [1, 5]")
     law = f"k3 y|y|^{float(exponent) - 1:g}"
     return _of_power(
         _DUFFING, exponent, (1.0, 3.0, 5.0),
@@ -494,6 +497,7 @@ def make_pendulum_drag(
 
 def _pendulum(exponent: float) -> _Generator:
     """The pendulum's generator with a drag of power ``exponent`` (2: `_PENDULUM`)."""
+    exponent = _check_number("exponent", exponent, "a number in [1, 3]")
     power = f"{float(exponent) - 1:g}"
     descr = (
         _PENDULUM.system.descr.replace("cd theta'|theta'|", f"cd theta'|theta'|^{power}")

@@ -7,11 +7,13 @@ from __future__ import annotations
 from functools import partial
 
 import numpy as np
-from sklearn.utils import Bunch, check_random_state
+from sklearn.utils import Bunch
 
 from sk_offwhite.datasets._common import (
     _bunch,
     _check_n_samples,
+    _check_number,
+    _check_random_state,
     _gaussian,
     _gaussian_noise,
     _multisine,
@@ -133,7 +135,7 @@ def make_nonlinear_sensor_tank(
         ``u, z, u_val, z_val, x, x_val, physics, true_parameters, true_x0, true_x0_val,
         hidden_effect, suggested_library, noise, sampling_time, DESCR``.
     """
-    cubic = float(cubic)
+    cubic = _check_number("cubic", cubic, "a finite number")
     if not np.isfinite(cubic):
         raise ValueError(f"cubic must be finite, got {cubic!r}.")
     cubic_term = f" + {cubic:g} x^3" if cubic else ""
@@ -269,7 +271,7 @@ def _sensor_tank_data(sampling, reading, hidden: dict, read_as: str) -> Bunch:
 
     n_samples, noise_std, process_noise_std, random_state = sampling
     n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
-    rng = check_random_state(random_state)
+    rng = _check_random_state(random_state)
     truth = _sensor_tank_physics(SENSOR_THETA["k"], SENSOR_X0)
     records = [_sensor_record(rng, n, truth, stds, reading) for _ in range(2)]
     (est, est_noise), (val, val_noise) = records

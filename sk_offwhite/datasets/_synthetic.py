@@ -32,7 +32,7 @@ from dataclasses import replace
 
 import jax.numpy as jnp
 import numpy as np
-from sklearn.utils import Bunch, check_random_state
+from sklearn.utils import Bunch
 
 from sk_offwhite.datasets._cascaded_tanks import (
     SATURATION_LEVEL,
@@ -42,7 +42,10 @@ from sk_offwhite.datasets._cascaded_tanks import (
 )
 from sk_offwhite.datasets._common import (
     _bunch,
+    _check_fraction,
     _check_n_samples,
+    _check_number,
+    _check_random_state,
     _check_scale,
     _effect_sign,
     _gaussian,
@@ -206,7 +209,8 @@ def make_cascaded_tanks(
     process_noise_std : float, default=0.0
         Standard deviation of the Gaussian process noise ``w`` on both levels.
     overflow_fraction : float, default=0.5
-        Fraction of the upper-tank overflow that reaches the lower tank.
+        Fraction of the upper-tank overflow that reaches the lower tank, in $[0, 1]$ (0: all
+        of it leaves the system, 1: all of it reaches the lower tank).
 
     Returns
     -------
@@ -221,9 +225,10 @@ def make_cascaded_tanks(
         _check_scale("noise_std", noise_std),
         _check_scale("process_noise_std", process_noise_std),
     )
-    rng = check_random_state(random_state)
+    rng = _check_random_state(random_state)
     flags = {"overflow": bool(overflow), "saturation": bool(saturation)}
-    limits = {"level": SATURATION_LEVEL, "fraction": float(overflow_fraction), **flags}
+    fraction = _check_fraction("overflow_fraction", overflow_fraction)
+    limits = {"level": SATURATION_LEVEL, "fraction": fraction, **flags}
     plain = cascaded_tanks_physics(x0=TANKS_X0, sampling_time=_TANKS_TS)
     est, noise_est = _tanks_record(rng, n, plain, _TanksLimit(**limits), stds, saturation)
     val, noise_val = _tanks_record(rng, n, plain, _TanksLimit(**limits), stds, saturation)
@@ -363,7 +368,7 @@ def make_friction_oscillator(
     """
     n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
     system, rates = _friction_system(stribeck)
-    rng = check_random_state(random_state)
+    rng = _check_random_state(random_state)
     inputs = [2.0 * _multisine(rng, n, 0.05)[:, None] for _ in range(2)]
     data = _simple_dataset(system, rng, n, inputs, stds)
     if rates:
@@ -374,7 +379,7 @@ def make_friction_oscillator(
 def _friction_system(stribeck: float) -> tuple:
     """The friction oscillator's system with a Stribeck level ``stribeck`` (0: the
     Coulomb friction, `_FRICTION_SYSTEM`) and the rates to report (none for 0)."""
-    stribeck = float(stribeck)
+    stribeck = _check_number("stribeck", stribeck, "a finite number >= 0")
     if not (np.isfinite(stribeck) and stribeck >= 0):
         raise ValueError(f"stribeck must be finite and >= 0, got {stribeck!r}.")
     if stribeck == 0.0:
@@ -549,7 +554,7 @@ def make_saturating_actuator(
         hidden_effect, suggested_library, noise, sampling_time, DESCR``.
     """
     n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
-    rng = check_random_state(random_state)
+    rng = _check_random_state(random_state)
     inputs = [0.8 * _multisine(rng, n, 0.03)[:, None] for _ in range(2)]
     return _simple_dataset(_ACTUATOR_SYSTEM, rng, n, inputs, stds)
 
@@ -642,6 +647,6 @@ def make_leaky_tank(
         hidden_effect, suggested_library, noise, sampling_time, DESCR``.
     """
     n, stds = _check_n_samples(n_samples), _noise_stds(noise_std, process_noise_std)
-    rng = check_random_state(random_state)
+    rng = _check_random_state(random_state)
     inputs = [np.clip(2.0 + 0.6 * _multisine(rng, n, 0.02), 0.0, None)[:, None] for _ in range(2)]
     return _simple_dataset(_LEAKY_SYSTEM, rng, n, inputs, stds)

@@ -14,7 +14,7 @@ import dataclasses
 import numpy as np
 from sklearn.utils import Bunch
 
-from sk_offwhite.datasets._common import _SimpleSystem
+from sk_offwhite.datasets._common import _check_number, _SimpleSystem
 from sk_offwhite.datasets._mechanical import _generate, _Generator
 from sk_offwhite.datasets._synthetic import _first_order_physics
 from sk_offwhite.effects._terms import signed_power
@@ -244,6 +244,7 @@ def make_convective_block(
         As [`make_heated_block`][sk_offwhite.datasets.make_heated_block].
     """
     lower, upper = LOSS_EXPONENT_BOUNDS
+    exponent = _check_number("exponent", exponent, f"a number in [{lower}, {upper}]")
     if not lower <= exponent <= upper:
         raise ValueError(f"exponent must lie in [{lower}, {upper}], got {exponent!r}.")
     spec = _convective_generator(float(exponent))

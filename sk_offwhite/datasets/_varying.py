@@ -34,10 +34,11 @@ from dataclasses import dataclass
 
 import jax.numpy as jnp
 import numpy as np
-from sklearn.utils import Bunch, check_random_state
+from sklearn.utils import Bunch
 
 from sk_offwhite.datasets._common import (
     _check_n_samples,
+    _check_random_state,
     _gaussian,
     _multisine,
     _noise_stds,
@@ -210,7 +211,7 @@ def _generate(plant: _Plant, n_samples, noise_std, random_state, process_noise_s
     n = _check_n_samples(n_samples)
     default = plant.noise_std if noise_std is None else noise_std
     stds = _noise_stds(default, process_noise_std)
-    rng = check_random_state(random_state)
+    rng = _check_random_state(random_state)
     truth = _model(plant, _VaryingRhs(plant.rhs, plant.law), plant.theta, plant.x0)
     est, val = (_record(rng, n, plant, truth, stds) for _ in range(2))
     kinds = {"states": plant.kinds[0], "inputs": plant.kinds[1]}

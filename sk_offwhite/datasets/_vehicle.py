@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 import jax.numpy as jnp
 import numpy as np
-from sklearn.utils import Bunch, check_random_state
+from sklearn.utils import Bunch
 
 if TYPE_CHECKING:
     import pysindy as ps
@@ -16,6 +16,7 @@ if TYPE_CHECKING:
 from sk_offwhite.datasets._common import (
     _bunch,
     _check_n_samples,
+    _check_random_state,
     _check_scale,
     _effect_sign,
     _hidden_effect,
@@ -326,7 +327,7 @@ def make_vehicle_lateral(
     n = _check_n_samples(n_samples)
     bounds = (_check_scale("noise_bound", noise_bound),)
     bounds += (_check_scale("process_noise_bound", process_noise_bound),)
-    rng = check_random_state(random_state)
+    rng = _check_random_state(random_state)
     params = dict(zip("abc", VEHICLE_DELTA, strict=True))
     effect = _HiddenEffect(_vehicle_delta, params) if include_delta else None
     plain = _vehicle_physics(np.zeros(6))
