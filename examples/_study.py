@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 
 from sk_offwhite import enable_compilation_cache, enable_fused_loops
+from sk_offwhite.loop import write_report
 
 
 def configure_runtime(*, fused: bool = True, cache: bool = True, log: bool = True) -> None:
@@ -39,3 +41,18 @@ def print_outcome(result, unit: str, scale: float, elapsed: float) -> None:
     if result.failures:
         print("fits that failed:", *result.failures, sep="\n  ")
     print(f"wall time: {elapsed:.0f} s")
+
+
+def write_study_report(result, rows, records, out, data, *, title: str, notes) -> Path:
+    """`write_report` in the units of the measured benchmark ``data`` (its ``units`` and
+    ``sampling_time``); returns the report's path."""
+    return write_report(
+        result,
+        rows,
+        records,
+        out,
+        title=title,
+        notes=notes,
+        units=data.units,
+        sampling_time=data.sampling_time,
+    )

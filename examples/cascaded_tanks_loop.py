@@ -22,10 +22,10 @@ import argparse
 import time
 
 import pysindy as ps
-from _study import configure_runtime
+from _study import configure_runtime, write_study_report
 
 from sk_offwhite.datasets import cascaded_tanks_physics, load_cascaded_tanks
-from sk_offwhite.loop import LoopSettings, close_the_loop, score_models, write_report
+from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 
 
 def tanks_library():
@@ -120,7 +120,9 @@ def main(argv=None):
         "and scores the other 974 (nonlinear_benchmarks).",
         f"Wall time of the loop and scoring: {elapsed:.0f} s.",
     ]
-    path = write_report(result, rows, records, args.out, title="Cascaded Tanks", notes=notes)
+    path = write_study_report(
+        result, rows, records, args.out, data, title="Cascaded Tanks", notes=notes
+    )
     for row in rows:
         score = f"RMSE {row['rmse']:.4f}  fit {row['fit_percent']:.1f} %"
         if row["diverged_at"] is not None:

@@ -23,11 +23,11 @@ import time
 import jax.numpy as jnp
 import numpy as np
 import pysindy as ps
-from _study import configure_runtime, print_outcome, print_rows
+from _study import configure_runtime, print_outcome, print_rows, write_study_report
 
 from sk_offwhite import GreyBoxSparseRegressor
 from sk_offwhite.datasets import emps_physics, emps_reference_physics, load_emps
-from sk_offwhite.loop import LoopSettings, close_the_loop, score_models, write_report
+from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 
 COULOMB_WIDTH = 0.01
 """Velocity (m/s) over which the library's smooth sign rises: under a tenth of the peak speed."""
@@ -132,7 +132,7 @@ def main(argv=None):
         "(20 ms, the benchmark's protocol), which are not scored. RMSE in m (x1000: mm).",
         f"Wall time of the loop, scoring and reference fit: {elapsed:.0f} s.",
     ]
-    path = write_report(result, rows, records, args.out, title="EMPS", notes=notes)
+    path = write_study_report(result, rows, records, args.out, data, title="EMPS", notes=notes)
     print_summary(result, rows, reference, init_window, data, elapsed)
     print(f"report: {path}")
 

@@ -23,10 +23,10 @@ import argparse
 import time
 
 import pysindy as ps
-from _study import configure_runtime, print_outcome, print_rows
+from _study import configure_runtime, print_outcome, print_rows, write_study_report
 
 from sk_offwhite.datasets import load_silverbox, silverbox_physics
-from sk_offwhite.loop import LoopSettings, close_the_loop, score_models, write_report
+from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 
 DEFAULT_SAMPLES = 4096
 """Estimation samples the loop fits (the first 6.7 s of the estimation record)."""
@@ -108,7 +108,7 @@ def main(argv=None):
         "record, which are not scored (the benchmark's protocol). RMSE in V (x1000: mV).",
         f"Wall time of the loop and scoring: {elapsed:.0f} s.",
     ]
-    path = write_report(result, rows, records, args.out, title="Silverbox", notes=notes)
+    path = write_study_report(result, rows, records, args.out, data, title="Silverbox", notes=notes)
     print_summary(result, rows, elapsed)
     print(f"report: {path}")
 
