@@ -577,7 +577,7 @@ def certify_sparsity(
     active_rtol : float, default=1e-3
         (11d) counts as active when $\|\Upsilon_0(y - \Phi\omega^v)\|_2 \ge
         \mu(1 - \text{active\_rtol})$ (interior-point solutions meet complementarity only
-        approximately; about 2e-4 was seen on a noise-free vehicle fit). The same tolerance
+        to their solver's tolerance, not exactly). The same tolerance
         is allowed on the feasibility of ``omega_hat``.
     normalize_columns : bool, default=False
         Run the test on the dictionary rescaled to unit-norm columns (see the module

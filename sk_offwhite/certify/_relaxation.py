@@ -462,10 +462,9 @@ def sparse_relaxation(
         terms with large regressors whatever their role; the weighted one does not depend
         on the units of the dictionary. ``omega`` is returned in the original units.
     prune : bool, default=True
-        Make the support exact. With a tight $\mu$ the $\ell_1$ solution
-        carries small spurious terms (measured at $\mu = \|\eta\|_2$: up to
-        $2 \cdot 10^{-5}$ of the largest contribution, a few per cent of
-        $\mu$) that the threshold above keeps. With ``prune``,
+        Make the support exact. With a tight $\mu$ the $\ell_1$ solution can
+        carry small spurious terms, negligible against the largest contribution but
+        above the threshold, that the threshold above keeps. With ``prune``,
         the candidate terms are visited once in ascending order of $c_j$, and term
         $j$ is removed from the current support $S$ when the least-squares
         refit without it still satisfies the data constraint,

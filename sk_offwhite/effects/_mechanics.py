@@ -30,8 +30,7 @@ class Friction(AdditiveEffect):
     above ``min_width``), from ``stribeck_velocity``. The fitted width stays
     above ``min_width`` (default: 1 % of the starting width): at a width far below every
     speed on the record the sign is flat in $w$, and a fit that overshoots there
-    cannot come back (measured on a drive: stuck at the old floor of 1e-12 with a 2 %
-    worse fit, from starts 10x too wide or a Coulomb level 300x too small).
+    cannot come back.
 
     The richer variant of a Coulomb friction (`richer`) is the Stribeck friction
     whose level $F_s$ (from 0) and velocity $v_s$ (from

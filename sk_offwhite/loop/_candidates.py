@@ -96,15 +96,14 @@ def _level(hypothesis: Hypothesis | None, states: np.ndarray, index: int, name: 
 
 CORNER_FRACTION = 0.025
 """Rounding of a hinge (overflow, cap, sensor ceiling) as a fraction of the variable's
-standard deviation on the record: about 0.05 V on the Cascaded Tanks."""
+standard deviation on the record, so that it follows the data's units."""
 
 
 DEAD_ZONE_START = 0.02
 """Start of a proposed dead zone's half-width as a fraction of the input's RMS on the
-record: next to the model without it. Measured on the Cascaded Tanks pump (the four-effect
-model): started at 0.5, 2 or 5 % the fit lands at 0.73 V (3-fold CV 0.1018), at 10 or
-25 % in poor minima (0.131, 0.325); on the dead-zone motor every start from 0.5 to 50 %
-reaches the true 0.30 V."""
+record: narrow, so that the candidate starts next to the model without it and the fit
+widens it as far as the data ask; a wide start can leave the fit in a poorer local
+minimum (see *Effects started next to the declared model* in the design notes)."""
 
 
 def _corner(values) -> dict[str, float]:
@@ -313,10 +312,9 @@ def _transmissions(hypothesis, u, input_names, kinds: Kinds) -> list[Candidate]:
 
 DELAY_REACH = 25
 """Samples a proposed dead time may reach: the lags over which
-[`correlated_inputs`][sk_offwhite.diagnose.correlated_inputs] (its default ``max_lag``) found the
-correlation that proposes it. Measured on ``make_delayed_heater(delay=24.0)`` (12 samples),
-fits started at one sample: with a reach of 8 samples the delay stops at its bound and
-validates at 0.229 K; with 16 or 25 it reaches 24.02 s and the sensor's noise, 0.020 K."""
+[`correlated_inputs`][sk_offwhite.diagnose.correlated_inputs] (its default ``max_lag``) looks
+for the correlation that proposes it, so that every delay that correlation can point to lies
+within the fit's bound (a delay longer than the bound stops the fit at the bound)."""
 
 
 def _lags(hypothesis, u, input_names, dt: float, correlated) -> list[Candidate]:
