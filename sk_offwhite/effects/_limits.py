@@ -127,16 +127,19 @@ class InputSaturation(InputEffect):
 
     * ``shape="tanh"``: $u_j \leftarrow u_{max} \tanh(u_j / u_{max})$, a soft
       saturation (already 8 % below $u_j$ at half the level);
-    * ``shape="clip"``: a hard limit at $\pm u_{max}$ with rounded corners,
+    * ``shape="clip"``: a hard limit at $\pm u_{max}$ with rounded corners (below): the
+      input passes unchanged below the level (a heater, a valve, a drive at its current
+      limit).
 
-      $$
-      u_j \leftarrow u_j - \frac{u_{max}}{s}\left[\mathrm{sp}\big(s(u_j/u_{max} - 1)\big)
-            - \mathrm{sp}\big(s(-u_j/u_{max} - 1)\big)\right],
-      $$
+    The hard limit is
 
-      ($\mathrm{sp}$ the softplus, $s$ = ``sharpness``, relative to
-      $u_{max}$ so that the rounding follows the input's units): the input passes
-      unchanged below the level (a heater, a valve, a drive at its current limit).
+    $$
+    u_j \leftarrow u_j - \frac{u_{max}}{s}\left[\mathrm{sp}\big(s(u_j/u_{max} - 1)\big) -
+    \mathrm{sp}\big(s(-u_j/u_{max} - 1)\big)\right],
+    $$
+
+    with $\mathrm{sp}$ the softplus and $s$ = ``sharpness``, relative to $u_{max}$ so
+    that the rounding follows the input's units.
 
     Both shapes are one mechanism (`mechanism`): a set holds at most one of them.
     """
