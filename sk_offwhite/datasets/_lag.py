@@ -55,8 +55,10 @@ def lagged_command(u, time_constant: float, sampling_time: float, start=None) ->
     of the command sequence ``u`` (1-D), its mean over the sample:
 
     $$
-    \tilde u_k = p_k + \beta (u_k - p_k), \qquad p_{k+1} = p_k + \alpha (u_k - p_k),
-    \qquad \alpha = 1 - e^{-T_s/\tau}, \quad \beta = 1 - \frac{\tau}{T_s}\,\alpha,
+    \begin{gathered}
+    \tilde u_k = p_k + \beta (u_k - p_k), \qquad p_{k+1} = p_k + \alpha (u_k - p_k), \\
+    \alpha = 1 - e^{-T_s/\tau}, \quad \beta = 1 - \frac{\tau}{T_s}\,\alpha,
+    \end{gathered}
     $$
 
     the exact solution of $\tau \dot p = u - p$ under a zero-order hold

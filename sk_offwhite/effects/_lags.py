@@ -75,9 +75,11 @@ class InputLag(FirstOrderLag):
     physics leaves out. Held over each sample (zero-order hold), exactly,
 
     $$
+    \begin{gathered}
     p_{k+1} = p_k + \alpha\,(u_k - p_k), \qquad
-    \tilde u_k = p_k + \beta\,(u_k - p_k), \qquad
+    \tilde u_k = p_k + \beta\,(u_k - p_k), \\
     \alpha = 1 - e^{-T_s/\tau}, \quad \beta = 1 - \frac{\tau}{T_s}\,\alpha,
+    \end{gathered}
     $$
 
     where $\tilde u_k$, what the declared step sees, is the lag's mean over the

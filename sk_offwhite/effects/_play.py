@@ -19,9 +19,11 @@ class Backlash(HiddenStates, Effect):
     input pushes it from one side of the play,
 
     $$
+    \begin{gathered}
     p_{k+1} = \mathrm{clip}(p_k,\ u_k - w,\ u_k + w)
-    \approx p_k + \eta(u_k - w - p_k) - \eta(p_k - u_k - w),
-    \qquad \eta(a) = \frac{w}{s}\,\mathrm{sp}\Bigl(\frac{s\,a}{w}\Bigr),
+    \approx p_k + \eta(u_k - w - p_k) - \eta(p_k - u_k - w), \\
+    \eta(a) = \frac{w}{s}\,\mathrm{sp}\Bigl(\frac{s\,a}{w}\Bigr),
+    \end{gathered}
     $$
 
     and the declared step sees $p_{k+1}$ in place of $u_k$ ($\mathrm{sp}$
