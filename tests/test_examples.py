@@ -1,8 +1,8 @@
 """Every script in ``examples/`` runs (at reduced size), so the examples cannot rot.
 
 Each example runs as a subprocess with the arguments below; a new example must be added to
-``EXAMPLES`` (or to ``NOT_RUN`` with the reason) or :func:`test_every_example_is_listed`
-fails. At these sizes the slowest (the Cascaded Tanks loop) takes about 70 s on 2 cores.
+``EXAMPLES`` (or to ``NOT_RUN`` with the reason) or `test_every_example_is_listed` fails.
+The loop examples run in one process (``--n-jobs 1``) at their ``--quick`` sizes.
 """
 
 import importlib.util
@@ -19,8 +19,8 @@ from sk_offwhite.datasets._cascaded_tanks import cascaded_tanks_rhs
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = {
     "quickstart.py": ["--quick"],
-    # one process: the suite's two workers already hold both cores, and worker processes
-    # would each compile the same programs (70 s against 90 s alone, cache empty)
+    # one process: the suite's workers already hold the cores, and worker processes would
+    # each compile the same programs again
     "cascaded_tanks_loop.py": "--quick --n-jobs 1 --out {tmp}".split(),
     "vehicle_montecarlo.py": (
         "--runs 1 --noise-runs 1 --noise-levels 1e-3 --n-samples 300 --max-iter 100 --out {tmp}"
@@ -31,15 +31,15 @@ EXAMPLES = {
 }
 NOT_RUN = {
     "cascaded_tanks_variants.py": (
-        "a study of the main job's model: the whole loop (25-30 s) and then 16 variants, "
-        "each cross-validated (about 3 min on 2 cores), beyond the suite's budget; what it "
-        "calls are the loop's own public functions (close_the_loop, fit_continued, "
-        "held_out_rmse), exercised by test_loop.py"
+        "a study of the main job's model: the whole loop and then 16 variants, each "
+        "cross-validated, beyond the suite's budget; what it calls are the loop's own "
+        "public functions (close_the_loop, fit_continued, held_out_rmse), exercised by "
+        "test_loop.py"
     ),
     "cascaded_tanks_study.py": (
-        "exploration of hand-built effects: even `--folds 2 --max-iter 5 --gammas 0.1` takes "
-        "116 s on 2 cores (one compilation per effect structure and library), beyond the "
-        "suite's budget; its effects are tested in test_tanks_effects.py"
+        "exploration of hand-built effects: even `--folds 2 --max-iter 5 --gammas 0.1` "
+        "compiles once per effect structure and library, beyond the suite's budget; its "
+        "effects are tested in test_tanks_effects.py"
     ),
 }
 TIMEOUT_S = 600
