@@ -923,10 +923,6 @@ def _library(kind: str):
         return ps.CustomLibrary(library_functions=[lambda x: np.asarray(x) ** 2])
     if kind == "class":
         return ps.PolynomialLibrary
-    if kind == "empty-generalized":
-        return ps.GeneralizedLibrary([])
-    if kind == "fourier-zero":
-        return ps.FourierLibrary(n_frequencies=0)
     if kind == "polynomial-empty":
         return ps.PolynomialLibrary(degree=0, include_bias=False)
     if kind == "scaler":
@@ -939,13 +935,15 @@ def _library(kind: str):
 
 
 def library_cases() -> list[Case]:
+    """The dictionaries a fit may be given. pysindy refuses ``GeneralizedLibrary([])`` and
+    ``FourierLibrary(n_frequencies=0)`` in their constructors, before the package sees them,
+    so they are no input of the package's and are not cases."""
     kinds = {
         "pde": "pysindy PDELibrary", "weak-pde": "pysindy WeakPDELibrary",
         "sindy-pi": "pysindy SINDyPILibrary", "empty-custom": "CustomLibrary([])",
         "nan-feature": "CustomLibrary([log(x - 100)]): NaN on the data",
         "numpy-feature": "CustomLibrary with np.asarray in a feature (not traceable)",
         "class": "the class PolynomialLibrary, not an instance",
-        "empty-generalized": "GeneralizedLibrary([])", "fourier-zero": "FourierLibrary(0)",
         "polynomial-empty": "PolynomialLibrary(degree=0, include_bias=False): no terms",
         "scaler": "sklearn StandardScaler", "string": "library='poly'", "int": "library=3",
         "object": "library=object()",

@@ -15,6 +15,8 @@ from sklearn.utils._param_validation import Interval, StrOptions
 from sklearn.utils.validation import _check_feature_names
 
 from ._estimator_checks import (
+    check_enough_data,
+    warn_if_constant,
     _check_counts,
     _indices,
     records_digest,
@@ -33,7 +35,7 @@ from ._warnings import (
 )
 from .dictionaries import compile_basis
 from .effects._hidden import n_declared_states
-from .fitting._checks import bound_reason, fit_problems, non_finite_feature
+from .fitting._checks import bound_reason, edge_reason, fit_problems, non_finite_feature
 from .fitting._problem import SolverOptions, build_model, fit_records
 from .fitting._sparsity import SparseOptions
 from .model._physics import PhysicsModel
@@ -42,7 +44,7 @@ from .runtime._backend import to_device
 from .simulation._rollout import free_run_record
 from .simulation._segments import split_at_gaps
 from .solvers import LevenbergMarquardt, Optax
-from .solvers._rules import LM_SCALINGS
+from .solvers._rules import LM_SCALINGS, OUTCOMES
 
 __all__ = ["GreyBoxSparseRegressor"]
 
@@ -412,21 +414,31 @@ class GreyBoxSparseRegressor(FittedModel, RegressorMixin, BaseEstimator):
         starts."""
         records = self._records(u, z, sample_index, reset=True)
         n_inputs, n_outputs = records[0][0].shape[1], records[0][1].shape[1]
-        self._check_record_lengths(records)
+        self._check_record_lengths(records, sample_index)
         physics = self._resolved_physics(n_inputs, n_outputs)
+        check_enough_data(physics, records)
+        warn_if_constant(records)
         with jax.enable_x64(True):
             check_physics(physics, n_inputs, n_outputs, records[0][0][0])
             basis, model = self._compile(physics, n_outputs)
+            guess = {"theta": physics.parameter_values()}
+            _raise_for_features(physics, basis, guess, records, [physics.x0] * len(records))
             outcome = self._solve(physics, basis, model, records, reference_only)
         self._store(physics, basis, model, outcome, n_outputs)
         self._fitted_data = records_digest(records)
         _warn_if_runaway(physics, self.theta_)
         return self
 
-    def _check_record_lengths(self, records) -> None:
+    def _check_record_lengths(self, records, sample_index=None) -> None:
         longest = max(u.shape[0] for u, _ in records)
         if longest < 2:
-            raise ValueError("fit needs at least 2 consecutive samples, got 1 sample.")
+            cut = "" if sample_index is None else " (sample_index cuts the rows there)"
+            raise ValueError(f"fit needs at least 2 consecutive samples, got 1 sample{cut}.")
+        if self.init_window is not None and self.init_window > longest - 2:
+            raise ValueError(
+                f"init_window={self.init_window} leaves fewer than 2 samples to score in the "
+                f"longest record ({longest} samples): set a shorter init_window."
+            )
         if self.horizon is not None and longest < self.horizon:
             raise ValueError(
                 f"horizon={self.horizon} is longer than the data ({longest} samples); "
@@ -519,6 +531,8 @@ class GreyBoxSparseRegressor(FittedModel, RegressorMixin, BaseEstimator):
         scale = np.asarray(outcome.weights.output_scale, float)
         reason = fit_problems(model, blocks, records, first, scale, result.fit, self.horizon)
         reason = reason or bound_reason(physics, blocks["theta"])
+        if reason is None and result.message == OUTCOMES[3]:
+            reason = edge_reason(model, blocks, records, first, physics)
         if reason is None:
             return outcome
         judged = result._replace(converged=False, message=f"{reason} (solver: {result.message})")

@@ -4,11 +4,13 @@ must not be booleans, initial windows, sample weights and per-record arguments."
 from __future__ import annotations
 
 import hashlib
+import warnings
 
 import numpy as np
 from sklearn.utils.validation import _check_sample_weight
 
 from ._validation import is_experiment_list
+from .model._physics import LinearStateSpace
 
 
 def _indices(given, size: int, name: str, allow_empty: bool) -> tuple[int, ...]:
@@ -38,7 +40,10 @@ def _checked_z_init(z_init, n_samples: int, n_outputs: int) -> np.ndarray:
     """``z_init`` as ``(n_init, n_outputs)`` finite floats covering at most the record."""
     if is_experiment_list(z_init):
         raise ValueError("z_init is a list, but u is one record: pass one array.")
-    values = np.asarray(z_init, float)
+    try:
+        values = np.asarray(z_init, float)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"z_init must be an array of numbers, got {z_init!r}.") from error
     if values.size == 0:  # no initial window: the fitted initial state
         return values.reshape(0, n_outputs)
     values = values.reshape(len(values), -1) if values.ndim else values.reshape(1, -1)
@@ -80,3 +85,44 @@ def records_digest(records) -> str:
         digest.update(np.ascontiguousarray(u, float).tobytes())
         digest.update(np.ascontiguousarray(z, float).tobytes())
     return digest.hexdigest()
+
+
+def check_enough_data(physics, records) -> None:
+    """Refuse records that hold fewer output values than the fit has unknowns (the free
+    parameters and each record's free initial states): no fit can determine them. The
+    linear black box of an estimator without physics is exempt: it stands in for a
+    model, and scikit-learn's common checks fit it on fewer rows than it has entries."""
+    if isinstance(physics.step, LinearStateSpace):
+        return
+    n_values = sum(z.size for _, z in records)
+    n_parameters = len(physics.free_parameter_names)
+    n_states = int(np.sum(~np.asarray(physics.x0_fixed))) * len(records)
+    if n_values >= n_parameters + n_states:
+        return
+    n_samples = sum(len(z) for _, z in records)
+    raise ValueError(
+        f"z: {n_samples} samples give {n_values} output values for {n_parameters + n_states} "
+        f"unknowns ({n_parameters} free parameters, {n_states} free initial states): too few "
+        "samples to determine them; record more samples or fix some (Parameter(fixed=True), "
+        "x0_fixed=True)."
+    )
+
+
+def warn_if_constant(records) -> None:
+    """Warn when an output or an input column never changes over the records: a constant
+    output carries nothing about the dynamics, a constant input cannot reveal the
+    parameters through which it acts."""
+    u = np.vstack([u for u, _ in records])
+    z = np.vstack([z for _, z in records])
+    for name, values, what in (
+        ("z", z, "the parameters are not determined by it"),
+        ("u", u, "the parameters through which it acts are not determined"),
+    ):
+        constant = [j for j in range(values.shape[1]) if np.ptp(values[:, j]) == 0]
+        if constant and len(values) > 1:
+            warnings.warn(
+                f"{name} is constant over the records (column(s) {constant}): {what}; fit "
+                "on a record that excites the system.",
+                UserWarning,
+                stacklevel=4,
+            )

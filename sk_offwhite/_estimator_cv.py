@@ -13,6 +13,7 @@ from numbers import Integral, Real
 import numpy as np
 from sklearn.utils._param_validation import Interval
 
+from ._estimator_checks import _check_counts
 from ._estimator import GreyBoxSparseRegressor
 from ._path import GammaPath, fit_gamma_path
 from .model import PhysicsModel
@@ -142,6 +143,7 @@ lm_scaling, optimizer, max_iter, tol, init_window, warm_start, verbose, random_s
         self : GreyBoxSparseRegressorCV
         """
         self._validate_params()
+        _check_counts(self)
         base = GreyBoxSparseRegressor(**{name: getattr(self, name) for name in _SHARED})
         if self.library is None:  # the physics alone: no weight to choose
             self._adopt(base.fit(u, z, sample_index=sample_index))

@@ -61,10 +61,7 @@ class FittedModel:
 
     def _initial_state(self, model, u, z_init, x0):
         if x0 is not None:
-            x0 = np.asarray(x0, float).reshape(-1)
-            if x0.shape != self.x0_.shape or not np.all(np.isfinite(x0)):
-                raise ValueError(f"x0 must be {self.x0_.shape[0]} finite values, got {x0!r}.")
-            return x0
+            return _checked_x0(x0, self.x0_.shape[0])
         if z_init is None or len(z_init) == 0:
             return self.x0_
         n = len(z_init)
@@ -153,6 +150,7 @@ class FittedModel:
         """
         check_is_fitted(self)
         records = self._records(u, z, sample_index, reset=False)
+        self._check_scored(records)
         measured, simulated, weights = [], [], []
         for (u_r, z_r), w_r in zip(records, _record_weights(sample_weight, records), strict=True):
             window = self._score_window(u_r.shape[0])
@@ -163,12 +161,6 @@ class FittedModel:
             simulated.append(np.asarray(z_sim).reshape(len(u_r), -1)[window:])
             weights.append(w_r[window:])
         simulated = np.concatenate(simulated)
-        if len(simulated) < 2:
-            raise ValueError(
-                f"score needs at least 2 samples after each record's init_window "
-                f"(init_window={self.init_window}, records of {[len(r[0]) for r in records]} "
-                "samples): score longer records or set a shorter init_window."
-            )
         if not np.all(np.isfinite(simulated)):
             warnings.warn(
                 "The simulation diverged (non-finite outputs) on the scored data; score is -inf.",
@@ -178,6 +170,20 @@ class FittedModel:
             return -np.inf
         weight = None if sample_weight is None else np.concatenate(weights)
         return r2_score(np.concatenate(measured), simulated, sample_weight=weight)
+
+    def _check_scored(self, records) -> None:
+        """Refuse, before any simulation, outputs of another width than the fitted ones and
+        records that leave fewer than 2 samples to score after their ``init_window``."""
+        width = records[0][1].shape[1]
+        if width != self.n_outputs_:
+            raise ValueError(f"z has {width} output column(s), the model was fitted on {self.n_outputs_}.")
+        scored = sum(len(u) - self._score_window(len(u)) for u, _ in records)
+        if scored < 2:
+            raise ValueError(
+                f"score needs at least 2 samples after each record's init_window "
+                f"(init_window={self.init_window}, records of {[len(r[0]) for r in records]} "
+                "samples): score longer records or set a shorter init_window."
+            )
 
     def equations(self, precision: int = 4) -> list[str]:
         """Identified state equations, one string per state (corrections written out), then
@@ -197,3 +203,14 @@ class FittedModel:
             for n, v in zip(self.physics_.state_names, self.x0_, strict=True)
         )
         print(f"  x0: {x0}")
+
+
+def _checked_x0(x0, n_states: int) -> np.ndarray:
+    """``x0`` as ``n_states`` finite floats, or a ``ValueError`` naming it."""
+    try:
+        values = np.asarray(x0, float).reshape(-1)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"x0 must be {n_states} finite numbers, got {x0!r}.") from error
+    if values.shape != (n_states,) or not np.all(np.isfinite(values)):
+        raise ValueError(f"x0 must be {n_states} finite values, got {x0!r}.")
+    return values

@@ -27,7 +27,9 @@ from sklearn.utils._param_validation import (
 )
 
 from ._estimator import GreyBoxSparseRegressor
+from ._validation import check_pair, is_experiment_list
 from .model._equations import correction_rows
+from .model_selection._split import check_sample_index
 from .model_selection._scoring import held_out_errors
 from .runtime._parallel import gather, launch
 
@@ -479,9 +481,10 @@ def fit_gamma_path(
         min_improvement=min_improvement, stop_at_divergence=stop_at_divergence,
         restart=restart,
     )  # fmt: skip
-    u_arr, z_arr = np.asarray(u, float), np.asarray(z, float)
-    if cv is not None:
-        _splits(cv, len(u_arr))  # a splitter that cannot cut the record fails before any fit
+    u_arr, z_arr = check_pair(u, z) if not _records_given(u, z) else _refuse_records()
+    sample_index = check_sample_index(sample_index)
+    if cv is not None:  # a splitter that cannot cut the record fails before any fit
+        _check_window_fits(estimator, init_window, _splits(cv, len(u_arr)))
     if gammas is None:
         values, gamma_max = _grid(estimator, u_arr, z_arr, n_gammas, eps, sample_index)
     else:
@@ -595,6 +598,29 @@ def _fold_scores(folds: np.ndarray, failed: np.ndarray) -> tuple[np.ndarray, np.
     cv_error, cv_rmse = np.moveaxis(folds, (2, 0), (0, 2))[:, : len(failed)]
     cv_error[failed], cv_rmse[failed] = np.inf, np.inf
     return cv_error, cv_rmse
+
+
+def _records_given(u, z) -> bool:
+    return is_experiment_list(u) or is_experiment_list(z)
+
+
+def _refuse_records():
+    raise ValueError(
+        "u and z must be one record (2-D arrays) for fit_gamma_path, not lists of records: "
+        "run the path on each record, or join records that follow each other."
+    )
+
+
+def _check_window_fits(estimator, init_window, splits) -> None:
+    """Refuse a declared ``init_window`` that leaves fewer than 2 samples to score in the
+    shortest held-out block (the default rule is cut to half a block instead)."""
+    window = init_window if init_window is not None else estimator.init_window
+    shortest = min(len(test) for _, test in splits)
+    if window is not None and int(window) > shortest - 2:
+        raise ValueError(
+            f"init_window={window} leaves fewer than 2 samples to score in the held-out "
+            f"blocks of {shortest} samples: use fewer folds or a shorter init_window."
+        )
 
 
 def _init_window(estimator, init_window, n_samples: int) -> int:

@@ -46,6 +46,34 @@ def _check_one(name: str, values, ensure_2d: bool = True) -> np.ndarray:
     return values if values.ndim == 2 else values.reshape(-1, 1)
 
 
+LARGEST_VALUE = 1e150
+"""Magnitude past which a record's squares overflow float64 in the fit's cost; such data
+are refused (a rescaled record gives the same model: the fit is unit-free)."""
+
+
+def check_magnitude(name: str, values: np.ndarray) -> None:
+    """Refuse finite values whose squares overflow (`LARGEST_VALUE`)."""
+    largest = float(np.max(np.abs(values), initial=0.0))
+    if largest > LARGEST_VALUE:
+        raise ValueError(
+            f"{name} holds values up to {largest:.3g}, whose squares overflow in the fit's "
+            f"cost: rescale {name} (the model is unit-free, so a rescaled record gives the "
+            "same fit up to the scale)."
+        )
+
+
+def _refuse_flat_records(u) -> None:
+    """A list of 1-D arrays would be read as rows of one record: refuse it, naming ``u``."""
+    if isinstance(u, list | tuple) and u and all(isinstance(item, np.ndarray) for item in u):
+        shapes = [item.shape for item in u]
+        if any(len(shape) != 2 for shape in shapes):
+            raise ValueError(
+                "u: a list of records must hold 2-D arrays of shape (n_samples, n_inputs), "
+                f"got arrays of shapes {shapes}; reshape each 1-D record with "
+                "u_e.reshape(-1, 1)."
+            )
+
+
 def check_inputs(u) -> np.ndarray:
     """Validated input array ``u`` of shape ``(n_samples, n_inputs)``, finite, float64."""
     return _named("u", u, dtype=np.float64, ensure_all_finite=True)
@@ -67,8 +95,11 @@ def check_pair(u, z) -> tuple[np.ndarray, np.ndarray]:
             "z is None: this estimator requires y to be passed, but the target y is None "
             "(z holds the measured outputs)."
         )
+    _refuse_flat_records(u)
     u = check_inputs(u)
     z = _named("z", z, dtype=np.float64, ensure_2d=False, ensure_all_finite=True)
+    check_magnitude("u", u)
+    check_magnitude("z", z)
     if z.ndim > 2:
         raise ValueError(f"z must be 1-D or 2-D, got an array of shape {z.shape}.")
     if u.shape[0] != z.shape[0]:
@@ -100,6 +131,9 @@ def as_records(u, z) -> list[tuple[np.ndarray, np.ndarray]]:
         for e, (ue, ze) in enumerate(zip(u, z, strict=True))
     ]
     for e, (ue, ze) in enumerate(records):
+        check_magnitude(f"u[{e}]", ue)
+        check_magnitude(f"z[{e}]", ze)
+    for e, (ue, ze) in enumerate(records):
         if ue.shape[0] != ze.shape[0]:
             raise ValueError(f"u[{e}] has {ue.shape[0]} samples but z[{e}] has {ze.shape[0]}.")
     widths = {(ue.shape[1], ze.shape[1]) for ue, ze in records}
@@ -120,6 +154,35 @@ def _traceable(name: str, fun, *args, evaluate: bool = False):
         ) from error
 
 
+def _returned_type(fun):
+    """``fun`` wrapped to record the type of what it returns while it is traced (a JAX
+    array, or what the user's code built: a Python float, a dict, ...), and that record."""
+    returned = []
+
+    def recorded(*args):
+        value = fun(*args)
+        returned.append(value)
+        return value
+
+    return recorded, returned
+
+
+def _check_kind(name: str, value, where: str) -> None:
+    """Refuse a result that is not an array of real floating-point numbers (a Python
+    scalar, a container, booleans, integers or complex numbers)."""
+    if not isinstance(value, jax.Array | np.ndarray):
+        raise TypeError(
+            f"{name} returned a {type(value).__name__}, not an array ({where}): return a "
+            "jax.numpy array of real numbers, for example jnp.stack([...])."
+        )
+    if np.dtype(value.dtype).kind != "f":
+        raise TypeError(
+            f"{name} returned an array of dtype {value.dtype} ({where}): it must return real "
+            "floating-point numbers (a boolean, integer or complex result cannot be "
+            "simulated and differentiated as a model)."
+        )
+
+
 def _check_result(name: str, value, expected: tuple[int, ...], where: str) -> None:
     shape = tuple(np.shape(value))
     if shape != expected and not (expected == (1,) and shape == ()):
@@ -138,18 +201,26 @@ def check_physics(physics: PhysicsModel, n_inputs: int, n_outputs: int, u0) -> N
         ("physics.step", physics.step, (physics.n_states,)),
         ("physics.output", physics.output, (n_outputs,)),
     ]
-    for name, fun, expected in checks:
-        value = _traceable(name, fun, x0, u0, theta, evaluate=True)
-        _check_result(name, value, expected, where)
-        value = np.asarray(value)
-        if not np.all(np.isfinite(value)):
-            raise ValueError(
-                f"{name} returned non-finite values {value} {where}; "
-                "change physics.x0 or the parameter values."
-            )
-    for name, fun in (
-        ("physics.inequality", physics.inequality),
-        ("physics.equality", physics.equality),
-    ):
-        if fun is not None:
-            _traceable(name, fun, x0, u0, theta)
+    constraints = [
+        (name, fun, None)
+        for name, fun in (
+            ("physics.inequality", physics.inequality),
+            ("physics.equality", physics.equality),
+        )
+        if fun is not None
+    ]
+    for name, fun, expected in checks + constraints:
+        recorded, returned = _returned_type(fun)
+        value = _traceable(name, recorded, x0, u0, theta, evaluate=True)
+        _check_kind(name, returned[0], where)
+        if expected is not None:
+            _check_result(name, value, expected, where)
+        _check_finite(name, np.asarray(value), where)
+
+
+def _check_finite(name: str, value: np.ndarray, where: str) -> None:
+    if not np.all(np.isfinite(value)):
+        raise ValueError(
+            f"{name} returned non-finite values {value} {where}; "
+            "change physics.x0 or the parameter values."
+        )

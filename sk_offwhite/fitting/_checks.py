@@ -12,6 +12,11 @@ r"""What makes a finished fit no model although its solver converged.
   on the inputs at all (an input gain driven to zero, a constant held by the initial
   state): a perturbation of the inputs along their own variation then moves the output by
   less than `INSENSITIVE` of it.
+- **A stop at the edge of the physics' domain.** A solver that finds no descent step left
+  claims a stationary point; when a change of one free parameter by `EDGE_NUDGE` of itself
+  already makes the free run not finite, the trial steps were refused because the
+  simulation left the physics' domain (a square root or a logarithm of a state the data
+  take elsewhere), not because the cost stopped falling.
 - **Every parameter at a bound.** The solver stopped against the box, not at a minimum.
 - **Features that are not finite.** A dictionary term undefined where the model goes (a
   logarithm of a negative level) makes the cost not finite; it is named, with the sample.
@@ -25,7 +30,15 @@ from ..dictionaries import evaluate_matrix
 from ..runtime._backend import to_device
 from ..simulation._rollout import free_run_record
 
-__all__ = ["FREE_RUN_FACTOR", "INSENSITIVE", "bound_reason", "fit_problems", "non_finite_feature"]
+__all__ = [
+    "EDGE_NUDGE",
+    "FREE_RUN_FACTOR",
+    "INSENSITIVE",
+    "bound_reason",
+    "edge_reason",
+    "fit_problems",
+    "non_finite_feature",
+]
 
 FREE_RUN_FACTOR = 10.0
 """How much worse than the windows' RMS error a multiple-shooting fit's free run may be
@@ -89,6 +102,40 @@ def _input_reason(model, params, records, first_states, runs) -> str | None:
     )
 
 
+EDGE_NUDGE = 1e-4
+"""The relative change of one free parameter with which `edge_reason` probes whether
+a claimed stationary point sits on the edge of where the simulation is finite."""
+
+
+def edge_reason(model, blocks, records, first_states, physics) -> str | None:
+    """Why a fit that stopped with no descent step left sits where the simulation stops
+    being finite (the module docstring), or ``None``."""
+    theta = np.asarray(blocks["theta"], float)
+    params = {k: to_device(v) for k, v in blocks.items() if k != "x0"}
+    for j, name in enumerate(physics.parameter_names):
+        if physics.parameters[name].fixed:
+            continue
+        for sign in (1.0, -1.0):
+            nudged = theta.copy()
+            nudged[j] += sign * EDGE_NUDGE * max(abs(theta[j]), 1e-12)
+            if not _finite_runs(model, params | {"theta": to_device(nudged)}, records, first_states):
+                return (
+                    f"the fit stopped where the simulation stops being finite: changing {name} "
+                    f"by {sign * EDGE_NUDGE:+.0e} of itself makes the free run NaN or inf, so "
+                    "the solver's steps were refused at the edge of the domain of physics.step "
+                    "(a square root or logarithm of a state that the data take elsewhere), not "
+                    "at a minimum; write the physics so it is defined where the data go"
+                )
+    return None
+
+
+def _finite_runs(model, params, records, first_states) -> bool:
+    for (u, _), x0 in zip(records, first_states, strict=True):
+        if not np.all(np.isfinite(free_run_record(model, params, x0, u)[1])):
+            return False
+    return True
+
+
 def bound_reason(physics, theta) -> str | None:
     """Why a fit whose every free parameter sits at a bound is no minimum (or ``None``)."""
     free = np.array([not p.fixed for p in physics.parameters.values()], bool)
@@ -110,12 +157,13 @@ def bound_reason(physics, theta) -> str | None:
 
 def non_finite_feature(basis, states, inputs) -> str | None:
     """The first dictionary feature that is not finite on ``[states, inputs]`` (rows of a
-    free run), named with its sample, or ``None``."""
+    free run) where they are, named with its sample, or ``None`` (a row whose states are
+    not finite is the simulation's failure, not the feature's)."""
     if basis is None:
         return None
     values = np.hstack([states, inputs])
     phi = np.asarray(evaluate_matrix(basis, basis.init_params, values))[:, 0, :]
-    bad = ~np.isfinite(phi)
+    bad = ~np.isfinite(phi) & np.all(np.isfinite(values), axis=1)[:, None]
     if not bad.any():
         return None
     sample, column = np.argwhere(bad)[0]

@@ -356,8 +356,14 @@ one_standard_error, release_programs, fit_output_delta, output_bumps
         """
         self._z_was_1d = z is not None and np.asarray(z).ndim == 1
         u, z = check_record(u, z)
-        settings = self.settings(len(u))
         physics, library = _checked_estimator(self.estimator, u.shape[1], z.shape[1])
+        if self.estimator.physics is None and _is_auto(self.candidates):
+            raise ValueError(
+                "the estimator has no physics: the automatic candidates are effects missing "
+                "from a declared physics; give the estimator a PhysicsModel, or list the "
+                "candidates to try (candidates=[...])."
+            )
+        settings = self.settings(len(u))
         _check_settings_fit_record(settings, physics, len(u))
         search = Search(u, z, settings)
         given = None if _is_auto(self.candidates) else _given(self.candidates)

@@ -15,7 +15,7 @@ from .._validation import check_record
 from ..diagnose import simulation_metrics
 from ..model_selection import held_out_rmse
 
-__all__ = ["MODEL_LABELS", "held_out_rmse", "score_models"]  # held_out_rmse: re-exported
+__all__ = ["MODEL_LABELS", "checked_records", "held_out_rmse", "score_models"]  # held_out_rmse: re-exported
 
 MODEL_LABELS = {
     "baseline": "declared physics",
@@ -53,6 +53,8 @@ def score_models(result, records: dict, init_window: int = 50) -> list[dict]:
     (``None`` for a finite simulation), with a
     [`DivergenceWarning`][sk_offwhite.DivergenceWarning] from the simulation.
     """
+    records = checked_records(records)
+    _check_scoring(result, records, init_window)
     rows = []
     for key, label in MODEL_LABELS.items():
         est = getattr(result, key, None)
@@ -72,3 +74,40 @@ def score_models(result, records: dict, init_window: int = 50) -> list[dict]:
                     )
                 )
     return rows
+
+
+def checked_records(records) -> dict:
+    """``records`` as a dict of name to a validated ``(u, z)`` pair, or an error naming
+    ``records`` (a list, a record that is no pair, arrays of unequal lengths)."""
+    if not isinstance(records, dict) or not records:
+        raise TypeError(
+            "records must be a non-empty dict of record names to (u, z) pairs, for example "
+            f"{{'estimation': (u_est, z_est)}}, got {type(records).__name__}."
+        )
+    checked = {}
+    for name, pair in records.items():
+        if not isinstance(pair, tuple | list) or len(pair) != 2:
+            raise ValueError(f"records[{name!r}] must be a (u, z) pair of arrays.")
+        try:
+            checked[name] = check_record(*pair)
+        except (TypeError, ValueError) as error:
+            raise type(error)(f"records[{name!r}]: {error}") from error
+    return checked
+
+
+def _check_scoring(result, records: dict, init_window) -> None:
+    """Refuse a ``result`` that is no loop result and an ``init_window`` that is not an
+    integer leaving at least 2 samples of every record to score."""
+    if not hasattr(result, "baseline"):
+        raise TypeError(
+            "result must be the LoopResult of close_the_loop (or EffectSearchCV.result_), "
+            f"got {type(result).__name__}."
+        )
+    if isinstance(init_window, bool) or not isinstance(init_window, int | np.integer):
+        raise TypeError(f"init_window must be an integer, got {init_window!r}.")
+    shortest = min(len(u) for u, _ in records.values())
+    if not 0 <= init_window <= shortest - 2:
+        raise ValueError(
+            f"init_window must be in [0, {shortest - 2}] (at least 2 samples of the shortest "
+            f"record, {shortest} samples, must be scored), got {init_window}."
+        )

@@ -57,10 +57,7 @@ class Parameter:
     def __post_init__(self):
         _check_real("Parameter value", self.value)
         for flag in ("fixed", "relaxable"):
-            if not isinstance(getattr(self, flag), bool | np.bool_):
-                raise TypeError(
-                    f"Parameter {flag} must be True or False, got {getattr(self, flag)!r}."
-                )
+            object.__setattr__(self, flag, _check_flag(flag, getattr(self, flag)))
         lower, upper = _bound_pair(self.bounds)
         if not math.isfinite(float(self.value)):
             raise ValueError(f"Parameter value must be finite, got {self.value!r}.")
@@ -70,6 +67,16 @@ class Parameter:
             raise ValueError(f"Parameter value {self.value} lies outside its bounds {self.bounds}.")
         if self.relaxable and not self.fixed:
             raise ValueError("Parameter relaxable=True applies to a fixed parameter (fixed=True).")
+
+
+def _check_flag(argument: str, value) -> bool:
+    """``value`` as a bool: ``True``, ``False``, a NumPy boolean or the integers 0 and 1;
+    anything else (a string such as ``"yes"``) is a ``TypeError`` naming ``argument``."""
+    if isinstance(value, bool | np.bool_):
+        return bool(value)
+    if isinstance(value, int | np.integer) and value in (0, 1):
+        return bool(value)
+    raise TypeError(f"Parameter {argument} must be True or False, got {value!r}.")
 
 
 def _check_real(argument: str, value) -> float:
@@ -85,8 +92,8 @@ def _bound_pair(bounds) -> tuple[float, float]:
     """Return ``bounds`` as floats with ``None`` mapped to -inf / +inf."""
     if isinstance(bounds, str) or not hasattr(bounds, "__len__") or len(bounds) != 2:
         raise ValueError(f"bounds must be a (lower, upper) pair, got {bounds!r}.")
-    lower = -np.inf if bounds[0] is None else _check_real("a lower bound", bounds[0])
-    upper = np.inf if bounds[1] is None else _check_real("an upper bound", bounds[1])
+    lower = -np.inf if bounds[0] is None else _check_real("the lower of bounds", bounds[0])
+    upper = np.inf if bounds[1] is None else _check_real("the upper of bounds", bounds[1])
     if np.isnan(lower) or np.isnan(upper):
         raise ValueError(f"bounds must not be NaN, got {bounds!r}.")
     return lower, upper
@@ -125,7 +132,9 @@ def _per_state(argument: str, values, n_states: int, dtype) -> np.ndarray:
 def _as_parameter(name: str, spec) -> Parameter:
     if isinstance(spec, Parameter):
         return spec
-    if isinstance(spec, int | float | np.number):
+    if isinstance(spec, int | float | np.number) and not isinstance(spec, bool | np.bool_):
+        if not math.isfinite(float(spec)):
+            raise ValueError(f"parameters[{name!r}] must be finite, got {spec!r}.")
         return Parameter(float(spec))
     raise TypeError(
         f"parameters[{name!r}] must be a float or a Parameter, got {type(spec).__name__}."
@@ -244,6 +253,11 @@ class PhysicsModel:
         self.n_inputs = _positive_int("n_inputs", n_inputs, allow_zero=True)
         self.step = step
         self.output = output if callable(output) else MeasuredStates(output, self.n_states)
+        if not isinstance(parameters, Mapping):
+            raise TypeError(
+                "parameters must be a mapping of names to floats or Parameter objects "
+                f"(a dict), got {type(parameters).__name__}."
+            )
         self.parameters = {str(k): _as_parameter(str(k), v) for k, v in parameters.items()}
         self.x0 = self._initial_state(x0)
         self.x0_fixed = _per_state("x0_fixed", x0_fixed, self.n_states, bool)
