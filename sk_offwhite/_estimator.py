@@ -15,11 +15,11 @@ from sklearn.utils._param_validation import Interval, StrOptions
 from sklearn.utils.validation import _check_feature_names
 
 from ._estimator_checks import (
-    check_enough_data,
-    warn_if_constant,
     _check_counts,
     _indices,
+    check_enough_data,
     records_digest,
+    warn_if_constant,
 )
 from ._fitted import FittedModel
 from ._sklearn_glue import _nested_params, _safe_clone, _short_repr

@@ -13,8 +13,8 @@ from numbers import Integral, Real
 import numpy as np
 from sklearn.utils._param_validation import Interval
 
-from ._estimator_checks import _check_counts
 from ._estimator import GreyBoxSparseRegressor
+from ._estimator_checks import _check_counts
 from ._path import GammaPath, fit_gamma_path
 from .model import PhysicsModel
 

@@ -176,7 +176,9 @@ class FittedModel:
         records that leave fewer than 2 samples to score after their ``init_window``."""
         width = records[0][1].shape[1]
         if width != self.n_outputs_:
-            raise ValueError(f"z has {width} output column(s), the model was fitted on {self.n_outputs_}.")
+            raise ValueError(
+                f"z has {width} output column(s), the model was fitted on {self.n_outputs_}."
+            )
         scored = sum(len(u) - self._score_window(len(u)) for u, _ in records)
         if scored < 2:
             raise ValueError(

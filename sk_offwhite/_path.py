@@ -29,8 +29,8 @@ from sklearn.utils._param_validation import (
 from ._estimator import GreyBoxSparseRegressor
 from ._validation import check_pair, is_experiment_list
 from .model._equations import correction_rows
-from .model_selection._split import check_sample_index
 from .model_selection._scoring import held_out_errors
+from .model_selection._split import check_sample_index
 from .runtime._parallel import gather, launch
 
 __all__ = ["GammaPath", "fit_gamma_path", "gamma_grid"]

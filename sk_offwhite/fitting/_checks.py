@@ -118,7 +118,9 @@ def edge_reason(model, blocks, records, first_states, physics) -> str | None:
         for sign in (1.0, -1.0):
             nudged = theta.copy()
             nudged[j] += sign * EDGE_NUDGE * max(abs(theta[j]), 1e-12)
-            if not _finite_runs(model, params | {"theta": to_device(nudged)}, records, first_states):
+            if not _finite_runs(
+                model, params | {"theta": to_device(nudged)}, records, first_states
+            ):
                 return (
                     f"the fit stopped where the simulation stops being finite: changing {name} "
                     f"by {sign * EDGE_NUDGE:+.0e} of itself makes the free run NaN or inf, so "

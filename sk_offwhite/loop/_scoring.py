@@ -15,7 +15,12 @@ from .._validation import check_record
 from ..diagnose import simulation_metrics
 from ..model_selection import held_out_rmse
 
-__all__ = ["MODEL_LABELS", "checked_records", "held_out_rmse", "score_models"]  # held_out_rmse: re-exported
+__all__ = [
+    "MODEL_LABELS",
+    "checked_records",
+    "held_out_rmse",
+    "score_models",
+]  # held_out_rmse: re-exported
 
 MODEL_LABELS = {
     "baseline": "declared physics",
