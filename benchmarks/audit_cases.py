@@ -1295,6 +1295,7 @@ def function_cases() -> list[Case]:
 
     refusals = [
         ("step.shape", "step returns shape (2,) for 1 state", with_step(_step_two), "step"),
+        ("step.list", "step returns a one-element list", with_step(_step_list), "step"),
         (
             "step.nan",
             "step returns NaN at the initial guess (log(x - 100))",
@@ -1387,8 +1388,6 @@ def function_cases() -> list[Case]:
                ("rhs", "step", "x")),
         accept("physics.step.scalar", FIT, "step returns a 0-d array for 1 state (documented)",
                with_step(_step_scalar), recovers_truth, "the truth"),
-        accept("physics.step.list", FIT, "step returns a one-element list",
-               with_step(_step_list), recovers_truth, "the truth", accept_class="harmless"),
         accept("physics.step.nan-later", FIT,
                "step is NaN once x < -0.2 (reached on the record), finite at the guess",
                with_step(_step_nan_later), recovers_truth,
