@@ -56,17 +56,22 @@ class GreyBoxSparseRegressor(FittedModel, RegressorMixin, BaseEstimator):
 
     $$
     \hat x_{k+1} = f(\hat x_k, u_k; \theta) + S\,\delta(\hat x_k, u_k; \omega), \qquad
-    \hat z_k = h(\hat x_k, u_k; \theta) + R\,\delta(\hat x_k, u_k; \omega), \qquad
-    \delta_i = \sum_j \Omega_{ij}\, \varphi_j(\hat x_k, u_k),
+    \hat z_k = h(\hat x_k, u_k; \theta) + R\,\delta(\hat x_k, u_k; \omega),
+    $$
+
+    $$
+    \delta_i(\hat x_k, u_k; \omega) = \sum_j \Omega_{ij}\, \varphi_j(\hat x_k, u_k),
     $$
 
     and ``fit`` minimises over $\theta$, $\hat x_0$ and $\omega$ the cost
 
     $$
-    C_T = \frac{1}{N n_z}\sum_{k,o} \frac{(\hat z_{ko} - z_{ko})^2}{\sigma_o^2}
-        + \gamma \sum_{ij} s_{ij} |\Omega_{ij}|_\beta
-        + \frac{\lambda}{N}\sum_k \|\max(p(\hat x_k), 0)\|^2
+    \begin{aligned}
+    C_T = {}& \frac{1}{N n_z}\sum_{k,o} \frac{(\hat z_{ko} - z_{ko})^2}{\sigma_o^2}
+        + \gamma \sum_{ij} s_{ij} |\Omega_{ij}|_\beta \\
+      & + \frac{\lambda}{N}\sum_k \|\max(p(\hat x_k), 0)\|^2
         + \frac{\nu}{N}\sum_k \|q(\hat x_k)\|^2,
+    \end{aligned}
     $$
 
     where $\hat z$ is the *simulated* output (the model feeds back its own state),

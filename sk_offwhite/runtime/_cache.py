@@ -87,8 +87,7 @@ def release_package_programs() -> int:
     caches keep theirs.
 
     The closed loop fits many model structures, each once or twice in a row, and the
-    programs of all of them stay in memory: the Cascaded Tanks main job held 1.68 GB at
-    its end in one process, 0.98 GB of it those programs (measured by clearing them). It
+    programs of all of them would otherwise stay in memory until the process ends. It
     calls this between its stages (``LoopSettings(release_programs=True)``); a structure
     fitted again afterwards is traced again and compiled again, or loaded from disk with
     [`enable_compilation_cache`][sk_offwhite.enable_compilation_cache].
