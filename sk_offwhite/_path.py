@@ -408,16 +408,13 @@ def fit_gamma_path(
     of fit the CV scored); the one with the lower penalised objective
     $F + \gamma\sum s|\Omega|$ is kept (``GammaPath.start`` says which).
     Continuation can carry a support from a larger $\gamma$ into a basin the data no
-    longer support (the noise-free vehicle, seed 4: a wrong 3-term support at fit error
-    3.1e-3 against Δ's 3 terms at 3.2e-14 from the reference). Without ``cv`` the last
-    $\gamma$'s continuation is returned (``restart=None``): nothing has scored a fit
-    from the reference there, and at a tiny $\gamma$ on noisy data its lower
-    objective is a fit of the noise (the noisy vehicle, 2000 samples, no CV: θ error 0.80
-    against the continuation's 0.0023). On noise-free data ``restart=True`` asks for the
-    two starts there too: which basin the continuation ends in can depend on rounding (the
-    noise-free vehicle, seed 0, on one of two processors measured: a wrong 3-term support
-    at fit error 2.3e-3, while the reference start reaches Δ's 3 terms at 3e-15 at every
-    $\gamma$ below 2e-6).
+    longer support, where the fit from the reference reaches the right one. Without
+    ``cv`` the last $\gamma$'s continuation is returned (``restart=None``): nothing has
+    scored a fit from the reference there, and at a tiny $\gamma$ on noisy data its
+    lower objective can be a fit of the noise, with parameters farther from the truth
+    than the continuation's. On noise-free data ``restart=True`` asks for the two starts
+    there too: which basin the continuation ends in can depend on rounding, and so on
+    the processor, while the fit from the reference does not depend on the path before it.
 
     Parameters
     ----------
@@ -450,10 +447,9 @@ def fit_gamma_path(
     min_improvement : float, default=0.0
         Relative change of the fit error a smaller $\gamma$ must bring for the path to
         go on (dimensionless, e.g. 1e-3); 0 fits the whole grid, as does a grid that is not
-        decreasing. Off by default: a non-convex path can stay flat for several
-        $\gamma$ and then reach a better support (the noise-free vehicle of Section
-        5.1 keeps a wrong 4-term support for three $\gamma$, then finds Δ's 3 terms
-        with a fit error of 1e-13), which an early end would miss.
+        decreasing. Off by default: a non-convex path can stay flat on a wrong support for
+        several $\gamma$ and then reach the right one (the noise-free vehicle of Section
+        5.1 does), which an early end would miss.
     stop_at_divergence : bool, default=True
         Choose only among the $\gamma$ before the first one whose mean CV error is
         not finite (a fold's held-out simulation diverged, or a fold's or the whole
@@ -462,11 +458,9 @@ def fit_gamma_path(
         $\gamma$ is finite; their errors there are ``inf``). There the
         penalty no longer keeps the correction stable off the data it was fitted on, and
         a smaller $\gamma$ only loosens it further: a finite CV error below that
-        point is the luck of where each fold's fit stopped (measured on the Cascaded Tanks
-        with a degree-2 dictionary: the folds diverge at $1.05\cdot10^{-4}$ and
-        $1.46\cdot10^{-5}$, not at $2.03\cdot10^{-6}$, then again below, and
-        a choice there changed with the units of the data). ``False`` chooses among every
-        finite mean, as before.
+        point is the luck of where each fold's fit stopped (the folds can diverge at one
+        $\gamma$, not at the next, and again below it, and a choice there can change
+        with the units of the data). ``False`` chooses among every finite mean.
     restart : bool, default=None
         Fit the returned $\gamma$ from the physics reference too and keep the lower
         penalised objective (see above). ``None``: only with ``cv``.

@@ -37,12 +37,8 @@ class Friction(AdditiveEffect):
     `STRIBECK_START` times the starting width: half the
     velocity's RMS as the loop starts it) are both fitted: at $F_s = 0$ it is the Coulomb friction,
     and $v_s$ does not move until $F_s$ does. A broad start is narrowed by the fit; a narrow one is
-    not widened (measured on
-    [`make_friction_oscillator`][sk_offwhite.datasets.make_friction_oscillator] with
-    ``stribeck=0.5``, $v_s = 0.3$, velocity RMS 1.46, the Coulomb fit's width 0.0045 carried: from
-    0.145 the fit ended at $F_s = 0.0001$ with validation RMSE 0.0223, the Coulomb friction's; from
-    0.3, 0.6, 0.725 and 1.0 at $F_s = 0.478$, $v_s = 0.303$, validation 0.00497,
-    the sensor's noise).
+    not widened: started below the true Stribeck velocity, the fit can leave $F_s$ near 0,
+    at the Coulomb friction's error, which is why the start is broad.
     """
 
     STRIBECK_START = 50.0

@@ -69,9 +69,9 @@ class Backlash(HiddenStates, Effect):
         $[\min u - R,\ \max u + R]$ with $R = \max u - \min u$. A start
         farther out is held at the play's edge by the first step as long as $w \le R$
         (a wider play never moves), so the bounds remove no model; without them a fit
-        can run the start along that flat direction (measured on the servo:
-        $1.7\cdot10^{14}$ rad, where doubles are 0.03 rad apart against a half-width
-        of 0.05). A constant input ($R = 0$) bounds nothing."""
+        can run the start along that flat direction to magnitudes where neighbouring
+        doubles are farther apart than the play is wide. A constant input ($R = 0$)
+        bounds nothing."""
         return (_widened_range(u, self.input),)
 
     def advance(self, hidden, u, theta):

@@ -77,8 +77,9 @@ def _board_multiple(physics: PhysicsModel) -> int:
     A fit on the board frees at most that many variables on the whole record (every
     parameter and one initial state), so every switch setting pads to the same size and
     shares one compiled program per record layout; over shooting windows, with more
-    initial states, the sizes are the next multiples. Padded to a multiple of 4 (the
-    earlier rule), the Cascaded Tanks' 15 candidates took 23 s instead of 15 s."""
+    initial states, the sizes are the next multiples. Padding each setting's own number of
+    free variables to a multiple of `PAD_TO` instead would give settings of different
+    sizes a program each."""
     board = _switched(physics)
     if not board:
         return 1
@@ -346,9 +347,7 @@ def _hidden_starts_inside(settings: FitSettings, outcome: FitOutcome) -> list | 
     input starts them (`hidden_start`), or ``None`` when that
     moves none. A start the first step forgets (a play's position beyond the play) has
     no gradient: a fit that pushed it there cannot bring it back, and a fit restarted
-    from inside can find a lower cost (the servo refitted from the first loop's result:
-    ``fit_error_`` 0.002079 with the position where that fit had left it, 0.002022 with
-    it inside)."""
+    from inside can find a lower cost."""
     physics = settings.physics
     starts = np.asarray(outcome.blocks["x0"])[np.asarray(outcome.segments.linked) == 0]
     theta = theta_dict(physics, outcome.blocks["theta"])

@@ -24,10 +24,9 @@ that loads most): the effect made the direction, and the declared parameters kee
 the physics says of them. A direction the declared physics has on its own is left to the
 user (the identifiability verdict reports it), as are initial states; so is a direction
 within one effect's parameters, the uncertainty of that effect's own size or shape (a
-calibration the data cannot tell from none: on the stepped-sensor tank one fitted to
-nearly nothing, $c_1 = -0.002$, had a direction loading $c_1$ by 0.78 and
-$c_0$ by 0.62, a relative error of 1.4, as near-zero values have for any small
-absolute change), which the effect set's cross-validation judges.
+calibration the data cannot tell from none has its coefficients fitted near zero, where any
+small absolute change is a large relative one), which the effect set's cross-validation
+judges.
 """
 
 from __future__ import annotations
@@ -59,8 +58,9 @@ default tolerance of [`identifiability`][sk_offwhite.certify.identifiability])."
 
 MAX_RELATIVE_ERROR = 0.5
 """The standard error of a relative change along a direction (in units of the
-parameters' own values) from which the data count as not determining it. On the Cascaded
-Tanks' four-effect model the scale of ``x2`` has 1.01 and the next direction 0.089."""
+parameters' own values) from which the data count as not determining it. A scale an added
+effect takes away has an error of the order of the values themselves, and the directions
+the data determine are far below it, so half the values separates the two."""
 
 MIN_EFFECT_LOADING = 0.1
 """The loading (in a unit eigenvector of relative changes) from which an added effect's

@@ -10,37 +10,24 @@ solver pads its free vector to one size for every set (``Model.free_multiple``),
 sets share one compiled program per layout. Both compose a set's effects in the order the
 candidates are given.
 
-Measured on the Cascaded Tanks main job in one process (the free vector then padded to a
-multiple of 4; jax 0.10.2, 2 CPU cores, no compilation cache, alternated with the previous
-commit): the same report to every printed digit, 99.5 and 86.6 s against 117.0 and
-106.4 s, of which XLA compilation 68.1 and 59.2 s against 86.6 and 77.8 s; with the
-programs kept between stages, 113 compilations (28 solver runs) against 243 (61). With
-two worker processes the board was slower (a first run 115.8 s against 91.0 s, with the
-cache filled 32.9-40.8 s against 30.2-34.7 s): each worker compiles or loads the board's
-programs for itself, where separate models are each compiled by the one worker that fits
-them. And the board's rounding can flip a
-near-tie: on the backlash servo ([`make_backlash_servo`][sk_offwhite.datasets.make_backlash_servo],
-1000 samples, 2 folds, ``max_iter=100``) separate models choose the backlash alone (CV RMSE
-0.00106, with friction 0.00112). The board chose the backlash with friction and stiffness
-(0.00105, the backlash alone 0.00113) while its backlash's hidden state was masked with
-``jnp.where``, and the backlash alone (0.00104, with friction 0.00114) once it went
-through the same ``lax.cond`` as the other effects. The backlash's fit on the whole record
-agrees with its own model's to 1.4e-7 relative: the folds' fits, stopped at
-``max_iter``, amplify the rounding. The loop therefore uses separate models for the effect
-sets unless ``LoopSettings(share_programs=True)``.
+In one process the board compiles less than separate models do. It is still not the default
+for the effect sets, for two reasons. With worker processes each worker compiles or loads
+the board's programs for itself, where a separate model is compiled only by the worker that
+fits it, so with workers the board is slower. And the board's rounding differs from that of a set's
+own model: a fit on the whole record agrees with its own model's to rounding, but the
+folds' fits, stopped at ``max_iter``, amplify the difference, which can flip a near-tie
+between two sets. The loop therefore uses separate models for the effect sets unless
+``LoopSettings(share_programs=True)``.
 
-The single candidates are another matter (`single_effect_models`). Each is fitted
-once, on the estimation record (no fold), and a candidate's fit compiles for seconds and
-computes for a tenth of one: on the Cascaded Tanks (1024 samples, jax 0.10.2, 2 CPU cores)
-a candidate's fit on its own model took 2.9-3.7 s, 2.4-2.9 s of it XLA compilation. On one
-board, in one process, the first fit compiles the board's programs and the others compile
-nothing; a switched model pads its free vector to one size for every switch setting
-(``Model.free_multiple``), so the board compiles one solver program per record layout. The
-README's main job, the compilation cache empty, two workers: the 15 candidates took 15 s
-instead of 45 s, the whole command 192 s instead of 214 s, and its report is the same (the
-floats of ``results.json`` to 12 digits or more). Effects with memory of their own stay on
-their own models (their hidden states would ride along in every fit on the board), as do
-relaxed laws (each changes the board's structure).
+The single candidates are another matter (`single_effect_models`). Each is fitted once, on
+the estimation record (no fold), and a candidate's fit is mostly compilation. On one board,
+in one process, the first fit compiles the board's programs and the others compile nothing;
+a switched model pads its free vector to one size for every switch setting
+(``Model.free_multiple``), so the board compiles one solver program per record layout.
+Fitted on the whole record, a candidate on the board agrees with its fit on its own model
+up to rounding. Effects with memory of their own stay on their own models (their hidden
+states would ride along in every fit on the board), as do relaxed laws (each changes the
+board's structure).
 """
 
 from __future__ import annotations

@@ -70,8 +70,8 @@ def damped_candidate(free, jtj, gradient, damping, scale, lower, upper):
     Variables held at a bound by the gradient (at the lower bound with $J^Tr > 0$,
     at the upper with $J^Tr < 0$) take no part in the step: the others solve the
     system without them. Clipping a step computed with them in would move the others as
-    if the held variable had moved too; measured on the tanks with a dictionary, such runs
-    alternated accepted and rejected steps until ``max_iter``."""
+    if the held variable had moved too, and a run can then alternate accepted and
+    rejected steps until ``max_iter``."""
     moving = ~held_at_bound(free, gradient, lower, upper)
     jtj = jnp.where(jnp.outer(moving, moving), jtj, 0.0)
     system = jtj + jnp.diag(damped_diagonal(jnp.diag(jtj), damping, moving, jnp, scale))
