@@ -228,7 +228,7 @@ class EffectSearchCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         Processes that fit the folds, the candidates and the sets (joblib's convention);
         the numbers are the same as with one.
     gammas, n_gammas, gamma_eps, cv_horizon, max_effects, min_gain, tolerance, \
-max_candidates, beam, min_share, n_promoted, fit_delta, share_programs, \
+max_candidates, beam, fit_top, n_pairs, min_share, n_promoted, fit_delta, share_programs, \
 one_standard_error, release_programs, fit_output_delta, output_bumps
         As [`LoopSettings`][sk_offwhite.loop.LoopSettings].
 
@@ -281,6 +281,8 @@ one_standard_error, release_programs, fit_output_delta, output_bumps
         tolerance: float = 0.02,
         max_candidates: int | None = None,
         beam: int = 4,
+        fit_top: int | None = 8,
+        n_pairs: int = 2,
         min_share: float = 0.1,
         n_promoted: int = 3,
         fit_delta: bool = True,
@@ -303,6 +305,8 @@ one_standard_error, release_programs, fit_output_delta, output_bumps
         self.tolerance = tolerance
         self.max_candidates = max_candidates
         self.beam = beam
+        self.fit_top = fit_top
+        self.n_pairs = n_pairs
         self.min_share = min_share
         self.n_promoted = n_promoted
         self.fit_delta = fit_delta

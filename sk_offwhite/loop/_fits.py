@@ -12,6 +12,7 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+from sklearn.exceptions import ConvergenceWarning
 
 from .._estimator import GreyBoxSparseRegressor
 from .._warnings import RunawayParameterWarning
@@ -22,9 +23,15 @@ __all__ = ["fit_continued", "warm_physics"]
 
 
 def fit_continued(est: GreyBoxSparseRegressor, u, z, horizon):
-    """Fit with multiple shooting first (``horizon``), then refine on the whole record."""
+    """Fit with multiple shooting first (``horizon``), then refine on the whole record.
+
+    Only the refinement's verdict is reported: the windows' fit is a start, and a
+    ``ConvergenceWarning`` of it (windows that fit
+    while their free run over the record does not) is what the refinement is for."""
     if horizon is not None and horizon < len(u):
-        est.set_params(horizon=horizon).fit(u, z)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ConvergenceWarning)
+            est.set_params(horizon=horizon).fit(u, z)
         est.set_params(horizon=None, warm_start=True)
     est.fit(u, z)
     return est.set_params(warm_start=False)

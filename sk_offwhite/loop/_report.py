@@ -277,7 +277,7 @@ def _hypothesis_lines(result) -> list[str]:
 
 
 def _alone_cell(alone: dict, name: str) -> str:
-    return f"{alone[name]:.4g}" if name in alone else "not fitted (max_candidates)"
+    return f"{alone[name]:.4g}" if name in alone else "not fitted (max_candidates, fit_top)"
 
 
 def _candidate_lines(result, unit: str = "") -> list[str]:

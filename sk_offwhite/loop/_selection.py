@@ -1,6 +1,8 @@
 r"""Stage 4 of the loop: which effects the physics gains.
 
-Each candidate is fitted alone on the estimation record (`rank_alone`); forward selection
+The candidates are scanned by the error one Gauss-Newton step would reach
+(`sk_offwhite.loop._scan`) and the best of them fitted alone on the estimation record
+(`rank_alone`), with the pairs the scan finds helping only together; forward selection
 then adds, among the ``beam`` best, the candidate that lowers the estimation error most
 while it lowers it by ``min_gain`` (`forward`; when no candidate helps alone, the best pair
 of the strongest is tried: effects such as Coulomb friction and a force offset only help
@@ -22,6 +24,7 @@ from ._fits import label, own, quick_fit
 from ._plausibility import chosen_index, stand_in_reasons
 from ._proposals import capped
 from ._refinement import swap
+from ._scan import scan_note, scan_scores, scanned_pairs, to_fit
 from ._search import Search
 from ._sets import best_of, sets_cv
 from ._switchboard import Switchboard, effect_sets, single_effect_models
@@ -45,7 +48,7 @@ def select_effects(search: Search, physics, candidates, base_rmse, declared_cv=N
     if declared_cv is None:
         declared_cv = structure_cv(search, physics)
     candidates = capped(candidates, settings.max_candidates)
-    ranked = search.released(rank_alone(search, physics, candidates))
+    ranked, groups = scan_and_fit(search, physics, candidates, groups)
     # sets compose their effects in the order of the single fits (best first)
     variants = with_richer([c.effect for _, c, _ in ranked])
     board = effect_sets(physics, variants, settings.share_programs)
@@ -67,11 +70,12 @@ def select_effects(search: Search, physics, candidates, base_rmse, declared_cv=N
     return board.ordered(chosen), trail, singles, warm, fits
 
 
-def rank_alone(search: Search, physics, candidates):
+def rank_alone(search: Search, candidates, models):
     """``(estimation RMSE, candidate, fitted effect parameters)`` of each candidate added
     to ``physics`` alone, best first (``inf`` and a line in ``failures`` where the fit
     failed); a named effect ranks before a promoted term unless the term is better by
-    ``tolerance``.
+    ``tolerance``. ``models`` are what each candidate's fit builds its model from
+    (`candidate_models`).
 
     The candidates are fitted on a switchboard where they can share one, in this process:
     each fit compiles nothing after the first, and a worker would compile the board's
@@ -79,10 +83,6 @@ def rank_alone(search: Search, physics, candidates):
     own model."""
     settings = search.settings
     effects = [c.effect for c in candidates]
-    if settings.share_programs:
-        models = [effect_sets(physics, effects, True)] * len(effects)
-    else:
-        models = single_effect_models(physics, effects)
     worker = search.detached()
     calls = [
         (f"candidate {effect.name}", quick_fit, worker, model, (effect,), {})
@@ -95,6 +95,47 @@ def rank_alone(search: Search, physics, candidates):
         for candidate, fit in zip(candidates, fitted, strict=True)
     ]
     return sorted(ranked, key=lambda item: item[0] * handicap(item[1].effect, settings))
+
+
+def scan_and_fit(search: Search, physics, candidates, groups):
+    """``(ranked, groups)``: the single fits (`rank_alone`) of the candidates the scan
+    keeps (`sk_offwhite.loop._scan`: the ``fit_top`` best, those it cannot judge and the
+    members of ``groups`` and of the scanned pairs), best first, and ``groups`` with the
+    scanned pairs (`pair_groups`). A note says how many were scanned and fitted."""
+    settings = search.settings
+    models = candidate_models(physics, candidates, settings.share_programs)
+    scores = scan_scores(search, models, candidates)
+    pairs = scanned_pairs(search, models, candidates, scores, settings.n_pairs)
+    members = {id(effect) for effects, _ in groups for effect in effects}
+    needed = {k for i, j, _ in pairs for k in (i, j)}
+    needed |= {k for k, c in enumerate(candidates) if id(c.effect) in members}
+    fitted = [keep or k in needed for k, keep in enumerate(to_fit(scores, settings.fit_top))]
+    search.notes.append(scan_note(candidates, scores, fitted))
+    kept = [k for k, keep in enumerate(fitted) if keep]
+    ranked = rank_alone(search, [candidates[k] for k in kept], [models[k] for k in kept])
+    return search.released(ranked), [*groups, *pair_groups(candidates, pairs, ranked)]
+
+
+def pair_groups(candidates, pairs, ranked) -> list[tuple[tuple, dict]]:
+    """``(effects, starts)`` of each scanned pair, started from its members' single fits
+    (each member's own parameters; the declared ones from the better member's)."""
+    fits = {id(candidate): params for _, candidate, params in ranked}
+    groups = []
+    for i, j, _ in pairs:
+        a, b = candidates[i], candidates[j]
+        starts = [fits.get(id(a), {}), fits.get(id(b), {})]
+        warm = {**starts[0], **own(starts[1], b.effect)}
+        groups.append(((a.effect, b.effect), warm))
+    return groups
+
+
+def candidate_models(physics, candidates, shared: bool) -> list:
+    """What each candidate's fit alone builds its model from: one board for all when
+    ``shared``, else `single_effect_models`."""
+    effects = [c.effect for c in candidates]
+    if shared:
+        return [effect_sets(physics, effects, True)] * len(effects)
+    return single_effect_models(physics, effects)
 
 
 def handicap(effect, settings) -> float:

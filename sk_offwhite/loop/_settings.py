@@ -44,6 +44,8 @@ CONSTRAINTS: dict[str, list] = {
     "init_window": _count(0),
     "max_candidates": [*_count(1), None],
     "beam": _count(1),
+    "fit_top": [*_count(1), None],
+    "n_pairs": _count(0),
     "min_share": [Interval(Real, 0, 1, closed="both")],
     "n_promoted": _count(0),
     "fit_delta": ["boolean"],
@@ -101,6 +103,14 @@ class LoopSettings:
         hypothesis first), each with all its variants; ``None`` fits them all.
     beam : int, default=4
         How many of the best single candidates forward selection combines.
+    fit_top : int, default=8
+        How many of the candidates a switchboard can scan are fitted alone: the best by the
+        error one Gauss-Newton step from their start would reach (`sk_offwhite.loop._scan`);
+        candidates the scan cannot judge are always fitted. ``None`` fits every candidate.
+    n_pairs : int, default=2
+        How many pairs of candidates are fitted jointly besides the single fits: those one
+        Gauss-Newton step takes furthest below their better member alone (effects that
+        only help together, such as a Coulomb friction and a force offset).
     min_share : float, default=0.1
         The fraction of the strongest term's gain a term needs to be evidence.
     n_promoted : int, default=3
@@ -148,6 +158,8 @@ class LoopSettings:
     init_window: int = 50
     max_candidates: int | None = None
     beam: int = 4
+    fit_top: int | None = 8
+    n_pairs: int = 2
     min_share: float = 0.1
     n_promoted: int = 3
     fit_delta: bool = True
