@@ -166,6 +166,8 @@ def test_certificates_need_a_fitted_estimator(data):
         ({"gammas": ()}, "'gammas' parameter of LoopSettings"),
         ({"n_folds": 1}, "'n_folds' parameter of LoopSettings"),
         ({"n_folds": 2.5}, "'n_folds' parameter of LoopSettings"),
+        ({"fit_top": 0}, "'fit_top' parameter of LoopSettings"),
+        ({"n_pairs": -1}, "'n_pairs' parameter of LoopSettings"),
     ],
 )
 def test_loop_settings_are_checked(kwargs, message):
