@@ -293,7 +293,7 @@ def test_candidates_are_unique_by_name():
 def test_max_candidates_caps_the_candidates_fitted(monkeypatch):
     fitted = []
 
-    def rank_alone(search, physics, candidates):
+    def rank_alone(search, candidates, models):
         fitted.extend(candidates)
         return []
 
