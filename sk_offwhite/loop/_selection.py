@@ -72,7 +72,7 @@ def select_effects(search: Search, physics, candidates, base_rmse, declared_cv=N
 
 def rank_alone(search: Search, candidates, models):
     """``(estimation RMSE, candidate, fitted effect parameters)`` of each candidate added
-    to ``physics`` alone, best first (``inf`` and a line in ``failures`` where the fit
+    alone to the declared physics, best first (``inf`` and a line in ``failures`` where the fit
     failed); a named effect ranks before a promoted term unless the term is better by
     ``tolerance``. ``models`` are what each candidate's fit builds its model from
     (`candidate_models`).
@@ -118,7 +118,7 @@ def scan_and_fit(search: Search, physics, candidates, groups):
 
 def pair_groups(candidates, pairs, ranked) -> list[tuple[tuple, dict]]:
     """``(effects, starts)`` of each scanned pair, started from its members' single fits
-    (each member's own parameters; the declared ones from the better member's)."""
+    (each member's own parameters; the declared ones from the first member's)."""
     fits = {id(candidate): params for _, candidate, params in ranked}
     groups = []
     for i, j, _ in pairs:
