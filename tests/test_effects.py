@@ -32,7 +32,7 @@ from sk_offwhite.fitting._problem import build_model
 from sk_offwhite.loop import LoopSettings
 from sk_offwhite.loop._fits import quick_fit
 from sk_offwhite.loop._search import Search
-from sk_offwhite.loop._selection import rank_alone
+from sk_offwhite.loop._selection import candidate_models, rank_alone
 from sk_offwhite.loop._switchboard import SeparateModels, Switchboard, single_effect_models
 from sk_offwhite.loop._variants import mechanism
 from sk_offwhite.simulation._rollout import free_run
@@ -307,7 +307,7 @@ def test_single_effects_on_a_board_fit_as_alone_on_one_program_per_layout():
     settings = LoopSettings(horizon=64, max_iter=30)
     jax.clear_caches()
     search = Search(data.u, data.z, settings)
-    on_board = rank_alone(search, physics, candidates)
+    on_board = rank_alone(search, candidates, candidate_models(physics, candidates, False))
     # windows and whole record: two layouts; the three sets pad to one size on each
     assert _run_on_device._cache_size() == 2
     separate = SeparateModels.of(physics, effects)
