@@ -133,6 +133,7 @@ def as_records(u, z) -> list[tuple[np.ndarray, np.ndarray]]:
     for e, (ue, ze) in enumerate(records):
         check_magnitude(f"u[{e}]", ue)
         check_magnitude(f"z[{e}]", ze)
+    for e, (ue, ze) in enumerate(records):
         if ue.shape[0] != ze.shape[0]:
             raise ValueError(f"u[{e}] has {ue.shape[0]} samples but z[{e}] has {ze.shape[0]}.")
     widths = {(ue.shape[1], ze.shape[1]) for ue, ze in records}

@@ -29,7 +29,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..fitting._problem import build_model
-from ..fitting._sparsity import output_scale
 from ..simulation._rollout import simulate
 from ._switchboard import Switchboard
 from ._variants import mechanism
@@ -62,10 +61,9 @@ def step_error(residual: np.ndarray, jacobian: np.ndarray) -> float:
     return float(np.sqrt(np.mean((residual - columns @ step) ** 2)))
 
 
-def candidate_score(model_physics, u: np.ndarray, z: np.ndarray, scale: np.ndarray) -> float:
-    r"""The scan score of ``model_physics`` (a switchboard's model with one effect on) on the
-    record, its errors in units of ``scale`` (each output's $\sigma_o$, `output_scale`);
-    ``nan`` where its start does not simulate to finite outputs."""
+def candidate_score(model_physics, u: np.ndarray, z: np.ndarray) -> float:
+    """The scan score of ``model_physics`` (a switchboard's model with one effect on) on the
+    record; ``nan`` where its start does not simulate to finite outputs."""
     model = build_model(model_physics, None, ())
     free = ~np.array([p.fixed for p in model_physics.parameters.values()], bool)
     free_states = ~np.broadcast_to(
@@ -78,6 +76,7 @@ def candidate_score(model_physics, u: np.ndarray, z: np.ndarray, scale: np.ndarr
             jnp.asarray(model_physics.x0, jnp.float64),
             jnp.asarray(u, jnp.float64),
         )
+    scale = _output_scale(z)
     outputs = np.asarray(outputs).reshape(z.shape)
     jacobian = np.concatenate(
         [np.asarray(by_theta)[..., free], np.asarray(by_x0)[..., free_states]], axis=-1
@@ -89,24 +88,26 @@ def candidate_score(model_physics, u: np.ndarray, z: np.ndarray, scale: np.ndarr
     return step_error(residual, jacobian)
 
 
-def _scored(search, physics, scale: np.ndarray) -> float:
-    """`candidate_score` of ``physics`` on the search's record, ``nan`` where it fails."""
-    try:
-        return candidate_score(physics, search.u, search.z, scale)
-    except (ValueError, TypeError, FloatingPointError, np.linalg.LinAlgError):
-        return np.nan
+def _output_scale(z: np.ndarray) -> np.ndarray:
+    """Each output's standard deviation (1 for a constant one)."""
+    spread = np.std(z, axis=0)
+    return np.where(spread > 0, spread, 1.0)
 
 
 def scan_scores(search, models, candidates) -> list[float]:
     """The scan score of each candidate on a `Switchboard` in ``models`` (its model for
     the single fit), ``nan`` for the others and where the scan fails."""
-    scale = output_scale([(search.u, search.z)])
-    return [
-        _scored(search, model.model((candidate.effect,), {}), scale)
-        if isinstance(model, Switchboard)
-        else np.nan
-        for model, candidate in zip(models, candidates, strict=True)
-    ]
+    scores = []
+    for model, candidate in zip(models, candidates, strict=True):
+        if not isinstance(model, Switchboard):
+            scores.append(np.nan)
+            continue
+        try:
+            physics = model.model((candidate.effect,), {})
+            scores.append(candidate_score(physics, search.u, search.z))
+        except (ValueError, TypeError, FloatingPointError, np.linalg.LinAlgError):
+            scores.append(np.nan)
+    return scores
 
 
 def to_fit(scores, fit_top: int | None) -> list[bool]:
@@ -142,11 +143,13 @@ def scanned_pairs(search, models, candidates, scores, n_pairs: int) -> list[tupl
     the declared parameters partly absorb). A pair qualifies where its score is below
     ``1 - min_gain`` times its better member's."""
     bar = 1.0 - search.settings.min_gain
-    scale = output_scale([(search.u, search.z)])
     pairs = []
     for i, j in _board_pairs(models, candidates, scores):
         physics = models[i].model((candidates[i].effect, candidates[j].effect), {})
-        score = _scored(search, physics, scale)
+        try:
+            score = candidate_score(physics, search.u, search.z)
+        except (ValueError, TypeError, FloatingPointError, np.linalg.LinAlgError):
+            continue
         if np.isfinite(score) and score < bar * min(scores[i], scores[j]):
             pairs.append((i, j, score))
     return sorted(pairs, key=lambda pair: pair[2])[:n_pairs]
