@@ -129,7 +129,7 @@ def test_the_cv_estimator_refuses_a_boolean_horizon(data):
 def test_score_models_checks_its_records(data):
     with pytest.raises(TypeError, match="result must be the LoopResult"):
         score_models(object(), {"estimation": data})
-    with pytest.raises(TypeError, match="records must be a dict"):
+    with pytest.raises(TypeError, match="records must be a non-empty dict"):
         score_models(object(), [data])
     with pytest.raises(ValueError, match=r"records\['estimation'\] must be a \(u, z\) pair"):
         score_models(object(), {"estimation": data[0]})

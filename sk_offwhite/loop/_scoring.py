@@ -84,13 +84,11 @@ def score_models(result, records: dict, init_window: int = 50) -> list[dict]:
 def checked_records(records) -> dict:
     """``records`` as a dict of name to a validated ``(u, z)`` pair, or an error naming
     ``records`` (a list, a record that is no pair, arrays of unequal lengths)."""
-    if not isinstance(records, dict):
+    if not isinstance(records, dict) or not records:
         raise TypeError(
-            "records must be a dict of record names to (u, z) pairs, for example "
+            "records must be a non-empty dict of record names to (u, z) pairs, for example "
             f"{{'estimation': (u_est, z_est)}}, got {type(records).__name__}."
         )
-    if not records:
-        raise ValueError("records is empty: give at least one (u, z) record to score.")
     checked = {}
     for name, pair in records.items():
         if not isinstance(pair, tuple | list) or len(pair) != 2:
