@@ -3,10 +3,11 @@
 import numpy as np
 import pytest
 
-from sk_offwhite import Bias, GreyBoxSparseRegressor, Leak, OutputOffset
+from sk_offwhite import Bias, Friction, GreyBoxSparseRegressor, Leak, OutputOffset, Parameter
 from sk_offwhite.datasets import make_leaky_tank
 from sk_offwhite.loop import LoopSettings, warm_physics
 from sk_offwhite.loop._candidates import Candidate
+from sk_offwhite.loop._fits import member_start
 from sk_offwhite.loop._scan import scan_note, scan_scores, step_error, to_fit
 from sk_offwhite.loop._search import Search
 from sk_offwhite.loop._switchboard import single_effect_models
@@ -48,3 +49,15 @@ def test_the_missing_leak_scans_best(leaky):
     assert np.argmin(scores) == 2
     assert scores[2] < 0.2 * declared_error
     assert scores[2] < 0.6 * min(scores[:2])
+
+
+def test_a_pair_restarts_a_member_its_single_fit_left_on_a_bound():
+    """A Coulomb friction fitted alone at level 0 (its bound: it helps only with a force
+    offset) enters a joint fit at its own start; a level off the bound is kept."""
+    friction = Friction(1, coulomb=0.2, width=0.01, name="fr")
+    stuck = {"M": 3.0, "fr_coulomb": 0.0, "fr_width": 0.005}
+    assert member_start(stuck, friction) == {"fr_coulomb": 0.2, "fr_width": 0.005}
+    moved = {"fr_coulomb": Parameter(0.3, (0.0, None)), "fr_width": 0.005}
+    assert member_start(moved, friction) == moved
+    held = {"fr_coulomb": Parameter(0.0, (0.0, None))}
+    assert member_start(held, friction)["fr_coulomb"].value == 0.2

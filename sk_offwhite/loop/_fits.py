@@ -10,6 +10,7 @@ scored by the free run of the whole record, the protocol it will be used under.
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
 
 import numpy as np
 from sklearn.exceptions import ConvergenceWarning
@@ -128,6 +129,27 @@ def own(params: dict, effect) -> dict:
     """The entries of ``params`` that are ``effect``'s own parameters."""
     names = effect.parameters()
     return {name: value for name, value in params.items() if name in names}
+
+
+def member_start(params: dict, effect) -> dict:
+    """``effect``'s own entries of ``params`` (its single fit) as a start for a joint fit,
+    each one that ended on a bound back at the effect's own start: a single fit that
+    pushed a level to its bound (a Coulomb friction at 0, which only helps with a force
+    offset) leaves no start from which the joint fit moves it."""
+    spec = effect.parameters()
+    return {name: _restarted(value, spec[name]) for name, value in own(params, effect).items()}
+
+
+def _restarted(value, start: Parameter):
+    """``value`` (a number or a `Parameter`), at ``start``'s value where it lies on one of
+    ``start``'s bounds."""
+    number = getattr(value, "value", value)
+    on_bound = np.ndim(number) == 0 and any(
+        b is not None and np.isclose(float(number), b, rtol=1e-9, atol=0.0) for b in start.bounds
+    )
+    if not on_bound:
+        return value
+    return replace(value, value=start.value) if isinstance(value, Parameter) else start.value
 
 
 def without(params: dict, effect) -> dict:

@@ -311,7 +311,25 @@ def _selection_lines(result, records: dict, units: _Units) -> list[str]:
     added = (
         f"Effects added (parameters in the units of the declared physics{units.outputs(result)}):"
     )
-    return lines + ["", added, ""] + (chosen or ["- none improved the CV score"])
+    return (
+        lines
+        + _set_parameter_lines(result)
+        + ["", added, ""]
+        + (chosen or ["- none improved the CV score"])
+    )
+
+
+def _set_parameter_lines(result) -> list[str]:
+    """Each cross-validated set's fitted parameters: whether the physics it leaves is the
+    plant's can only be judged from them."""
+    lines = []
+    for name, _ in result.selection:
+        est = result.set_fits.get(name)
+        values = getattr(est, "parameters_", None)
+        if values:
+            shown = ", ".join(f"{k} = {v:.4g}" for k, v in values.items())
+            lines.append(f"- {name}: {shown}")
+    return ["", "Fitted parameters of each set:", "", *lines] if lines else []
 
 
 def _set_score(est, u, z, init_window: int = 50) -> str:

@@ -20,7 +20,7 @@ import numpy as np
 
 from ..effects import DictionaryTerm
 from ._cv import structure_cv
-from ._fits import label, own, quick_fit
+from ._fits import label, member_start, own, quick_fit
 from ._plausibility import chosen_index, stand_in_reasons
 from ._proposals import capped
 from ._refinement import swap
@@ -118,13 +118,15 @@ def scan_and_fit(search: Search, physics, candidates, groups):
 
 def pair_groups(candidates, pairs, ranked) -> list[tuple[tuple, dict]]:
     """``(effects, starts)`` of each scanned pair, started from its members' single fits
-    (each member's own parameters; the declared ones from the first member's)."""
-    fits = {id(candidate): params for _, candidate, params in ranked}
+    (each member's own parameters, `member_start`; the declared ones from the better
+    member's fit)."""
+    fits = {id(candidate): (rmse, params) for rmse, candidate, params in ranked}
     groups = []
     for i, j, _ in pairs:
         a, b = candidates[i], candidates[j]
-        starts = [fits.get(id(a), {}), fits.get(id(b), {})]
-        warm = {**starts[0], **own(starts[1], b.effect)}
+        fit_a, fit_b = fits.get(id(a), (np.inf, {})), fits.get(id(b), (np.inf, {}))
+        declared = min(fit_a, fit_b, key=lambda fit: fit[0])[1]
+        warm = {**declared, **member_start(fit_a[1], a.effect), **member_start(fit_b[1], b.effect)}
         groups.append(((a.effect, b.effect), warm))
     return groups
 
@@ -206,7 +208,7 @@ def forward_step(search: Search, board, pool, current, warm):
     worker = search.detached()
     calls = [
         ("effects " + label((*current, effect)), quick_fit, worker, board, (*current, effect),
-         {**warm, **own(params, effect)})
+         {**warm, **member_start(params, effect)})
         for effect, params in added
     ]  # fmt: skip
     fitted = search.attempt_all(calls)
@@ -226,7 +228,8 @@ def best_pair(search: Search, board, pool, base_rmse):
         for b in range(a + 1, len(pool)):
             effects = (pool[a][0], pool[b][0])
             name = "effects " + " + ".join(e.name for e in effects)
-            warm = {**pool[a][1], **own(pool[b][1], pool[b][0])}
+            warm = {**pool[a][1], **member_start(pool[a][1], pool[a][0]),
+                    **member_start(pool[b][1], pool[b][0])}  # fmt: skip
             fitted = search.attempt(name, quick_fit, search, board, effects, warm)
             if fitted is not None and (best is None or fitted[0] < best[2]):
                 best = (effects, fitted[1], fitted[0])
