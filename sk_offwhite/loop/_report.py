@@ -13,6 +13,7 @@ import numpy as np
 
 from .._validation import check_record
 from ..certify import UnidentifiableWarning, identifiability
+from ._energy import power_sentence
 from ._evidence import analyse_model
 from ._hypotheses import _signals
 from ._scoring import MODEL_LABELS, _protocol_metrics
@@ -302,12 +303,7 @@ def _selection_lines(result, records: dict, units: _Units) -> list[str]:
     for name, score in result.selection:
         cells = [_set_score(result.set_fits.get(name), *records[n]) for n in others]
         lines.append(f"| {name} | {score:.4f} |" + "".join(f" {c} |" for c in cells))
-    values = result.final.parameters_
-    chosen = [
-        f"- `{e.name}`: {e.describe(result.physics.state_names, _names(result), values)}; "
-        + ", ".join(f"{k} = {values[k]:.4g}" for k in e.parameters() if k in values)
-        for e in result.effects
-    ]
+    chosen = _added_lines(result, records["estimation"][0])
     added = (
         f"Effects added (parameters in the units of the declared physics{units.outputs(result)}):"
     )
@@ -317,6 +313,23 @@ def _selection_lines(result, records: dict, units: _Units) -> list[str]:
         + ["", added, ""]
         + (chosen or ["- none improved the CV score"])
     )
+
+
+def _added_lines(result, u) -> list[str]:
+    """A line per added effect: what it states, its fitted parameters and, for a term in a
+    velocity's equation, where its energy goes (`power_sentence`)."""
+    values = result.final.parameters_
+    if not result.effects:
+        return []
+    states = np.asarray(result.final.simulate(u).states, float)
+    u = np.asarray(u, float).reshape(len(states), -1)
+    lines = []
+    for e in result.effects:
+        line = f"- `{e.name}`: {e.describe(result.physics.state_names, _names(result), values)}; "
+        line += ", ".join(f"{k} = {values[k]:.4g}" for k in e.parameters() if k in values)
+        power = power_sentence(e, result.physics, values, states, u)
+        lines.append(line + (f"; {power}" if power else ""))
+    return lines
 
 
 def _set_parameter_lines(result) -> list[str]:
