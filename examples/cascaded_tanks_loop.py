@@ -103,6 +103,7 @@ def main(argv=None):
         n_jobs=args.n_jobs,
         lm_scaling=args.lm_scaling,
         one_standard_error=args.one_standard_error,
+        fit_delta=not args.quick,
     )
     start = time.perf_counter()
     result = close_the_loop(physics, tanks_library(), data.u_est, data.z_est, settings=settings)

@@ -318,9 +318,9 @@ def _selection_lines(result, records: dict, units: _Units) -> list[str]:
 def _added_lines(result, u) -> list[str]:
     """A line per added effect: what it states, its fitted parameters and, for a term in a
     velocity's equation, where its energy goes (`power_sentence`)."""
-    values = result.final.parameters_
     if not result.effects:
         return []
+    values = result.final.parameters_
     states = np.asarray(result.final.simulate(u).states, float)
     u = np.asarray(u, float).reshape(len(states), -1)
     lines = []
