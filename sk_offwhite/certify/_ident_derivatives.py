@@ -26,7 +26,7 @@ import jax.numpy as jnp
 
 from ..simulation._layout import Layout
 from ..simulation._objective import residuals, rollout_segments
-from ..simulation._rollout import Model, model_output, model_step, theta_dict
+from ..simulation._rollout import Model, model_output, model_step, step_rows, theta_dict
 from ..solvers._core import Problem, linearised
 
 __all__ = ["Perturbation", "cost_hessian", "mixed_derivatives", "output_jacobian"]
@@ -77,12 +77,15 @@ def disturbed_outputs(model: Model, params: dict, segments, disturbance):
     theta = theta_dict(model, params["theta"])
 
     def one(x0, u, d):
-        def advance(x, step):
-            u_k, d_k = step
-            z_k = model_output(model, params, x, u_k, theta)
-            return model_step(model, params, x, u_k) + d_k, z_k
+        n_inputs = u.shape[1]
 
-        return jax.lax.scan(advance, x0, (u, d))[1]
+        def advance(x, step):
+            row, d_k = step
+            u_k = row[:n_inputs]
+            z_k = model_output(model, params, x, u_k, theta)
+            return model_step(model, params, x, u_k, row) + d_k, z_k
+
+        return jax.lax.scan(advance, x0, (step_rows(model, u), d))[1]
 
     return jax.vmap(one)(params["x0"], segments.u, disturbance)
 

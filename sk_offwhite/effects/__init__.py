@@ -5,7 +5,8 @@ an overflow, a saturation, a friction, a lag. One module per family: limits
 (`Overflow`, `OutputSaturation`, `InputSaturation`, `DeadZone`, `DifferenceDeadZone`),
 terms (`Bias`, `Leak`, `PowerLoss`), mechanics (`Friction`, `Stiffness`, `PowerStiffness`,
 `QuadraticDrag`, `PowerDrag`), play (`Backlash`), lags and delay (`InputLag`, `SensorLag`,
-`InputDelay`), sensors (`OutputOffset`, `SensorCalibration`, `SensorStep`) and laws
+`InputDelay`), the input between samples (`InputHold`), sensors (`OutputOffset`,
+`SensorCalibration`, `SensorStep`) and laws
 (`RelaxedLaw`, `DictionaryTerm`) and a declared constant that varies
 (`VaryingParameter`). Every name is also importable from `sk_offwhite`.
 """
@@ -20,6 +21,7 @@ from ._base import (
     StateEffect,
 )
 from ._hidden import FollowsOutput, HiddenStates
+from ._hold import InputHold
 from ._lags import FirstOrderLag, InputDelay, InputLag, SensorLag
 from ._laws import DictionaryTerm, RelaxedLaw
 from ._limits import DeadZone, DifferenceDeadZone, InputSaturation, OutputSaturation, Overflow
@@ -44,6 +46,7 @@ __all__ = [
     "HiddenStates",
     "InputDelay",
     "InputEffect",
+    "InputHold",
     "InputLag",
     "InputSaturation",
     "LawEffect",

@@ -20,8 +20,9 @@ import jax.numpy as jnp
 from ..model._physics import DiscretizedStep, Parameter, PhysicsModel
 from ._base import AdditiveEffect, Effect, LawEffect
 from ._hidden import SensorReading, sensor_readings, with_hidden_states
+from ._hold import InputHold
 
-__all__ = ["augment", "time_step"]
+__all__ = ["augment", "continuous_time", "time_step"]
 
 
 class _EffectChain:
@@ -88,10 +89,11 @@ class AugmentedRhs(_EffectChain):
 def time_step(physics: PhysicsModel) -> float:
     """The unit of time of the effects' rates: the sampling time of a physics built with
     [`PhysicsModel.from_ode`][sk_offwhite.PhysicsModel.from_ode], else 1 (one sample)."""
-    return float(physics.sampling_time) if _continuous(physics) else 1.0
+    return float(physics.sampling_time) if continuous_time(physics) else 1.0
 
 
-def _continuous(physics: PhysicsModel) -> bool:
+def continuous_time(physics: PhysicsModel) -> bool:
+    """Whether ``physics`` integrates a right-hand side (built with `PhysicsModel.from_ode`)."""
     declared = getattr(physics, "declared", (physics.step,))[0]
     return isinstance(declared, DiscretizedStep)
 
@@ -108,12 +110,22 @@ def _step(declared_step, effects: tuple[Effect, ...]):
         inside = tuple(e for e in effects if _in_rhs(e))
         after = tuple(e for e in effects if not _in_rhs(e))
         if inside:
-            rhs = AugmentedRhs(declared_step.rhs, inside)
-            sampling_time = declared_step.dt * declared_step.n_substeps
-            declared_step = DiscretizedStep(
-                rhs, sampling_time, declared_step.method, declared_step.n_substeps
-            )
+            declared_step = declared_step.with_rhs(AugmentedRhs(declared_step.rhs, inside))
     return AugmentedStep(declared_step, after) if after else declared_step
+
+
+def _held(physics: PhysicsModel, declared_step, effects):
+    """The declared step under a first-order hold when ``effects`` hold an
+    [`InputHold`][sk_offwhite.InputHold] (only a physics built with
+    [`PhysicsModel.from_ode`][sk_offwhite.PhysicsModel.from_ode] has one)."""
+    if not any(isinstance(effect, InputHold) for effect in effects):
+        return declared_step
+    if not isinstance(declared_step, DiscretizedStep):
+        raise ValueError(
+            "InputHold interpolates the input between samples of a continuous-time physics: "
+            "build the physics with PhysicsModel.from_ode (its step here is discrete-time)."
+        )
+    return declared_step.with_hold("linear")
 
 
 def _merged_parameters(physics: PhysicsModel, effects) -> dict[str, Parameter]:
@@ -168,7 +180,9 @@ def augment(physics: PhysicsModel, *effects: Effect) -> PhysicsModel:
     model = PhysicsModel.__new__(PhysicsModel)
     model.__dict__.update(physics.__dict__)
     model.declared = declared
-    model.step = _step(declared[0], states) if states else declared[0]
+    declared_step = _held(physics, declared[0], everything)
+    model.input_hold = getattr(declared_step, "hold", "zero")
+    model.step = _step(declared_step, states) if states else declared_step
     model.output = AugmentedOutput(declared[1], outputs) if outputs else declared[1]
     model.parameters = _merged_parameters(physics, effects)
     model.effects = everything

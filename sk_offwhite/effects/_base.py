@@ -97,8 +97,8 @@ class Effect:
     """
 
     target = ""
-    """What the effect acts on: ``"input"``, ``"state"``, ``"output"``, ``"law"`` or
-    ``"hidden"`` (set by the bases)."""
+    """What the effect acts on: ``"input"``, ``"state"``, ``"output"``, ``"law"``,
+    ``"parameter"``, ``"hidden"`` or ``"hold"`` (set by the bases)."""
     hidden_states: tuple[str, ...] = ()
     """Names of the hidden states the effect carries: none unless it has memory."""
 

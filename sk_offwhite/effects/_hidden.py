@@ -148,9 +148,11 @@ class HiddenStateStep:
     hidden states and on the input, then the ``inner`` step on the declared states, then
     the effects that follow the declared ``output`` map (``None`` when none does)."""
 
-    def __init__(self, inner, effects: tuple, n_declared: int, output=None):
+    def __init__(
+        self, inner, effects: tuple, n_declared: int, output=None, hold="zero", n_inputs=0
+    ):
         self.inner, self.effects, self.n_declared = inner, effects, int(n_declared)
-        self.output = output
+        self.output, self.hold, self.n_inputs = output, hold, int(n_inputs)
         self.__name__ = getattr(inner, "__name__", "step")
 
     def slices(self):
@@ -166,7 +168,7 @@ class HiddenStateStep:
         for effect, part in self.slices():
             if not effect.follows_output:
                 u, hidden_next[part.start] = effect.advance(x[part], u, theta)
-        declared = self.inner(x[: self.n_declared], u, theta)
+        declared = self.inner(x[: self.n_declared], self._held(u, command), theta)
         declared = jnp.asarray(declared, dtype=x.dtype).reshape(self.n_declared)
         hidden_next.update(self._followed(x, declared, command, theta))
         parts = [
@@ -174,6 +176,17 @@ class HiddenStateStep:
             for _, part in self.slices()
         ]
         return jnp.concatenate([declared, *parts])
+
+    def _held(self, u, command):
+        """``u`` where the step reads ``[u_k, u_{k+1}]`` (`InputHold`): the inputs the
+        effects with memory delivered are held over the sample (their next value is not
+        known yet), the others move to the next sample as commanded."""
+        touched = sorted({e.input for e in self.effects if getattr(e, "input", None) is not None})
+        if self.hold == "zero" or not touched or command.shape[0] != 2 * self.n_inputs:
+            return u
+        for i in touched:
+            u = u.at[i + self.n_inputs].set(u[i])
+        return u
 
     def _followed(self, x, declared_next, u, theta) -> dict:
         """Next hidden states of the effects that follow the declared output, by the
@@ -186,7 +199,15 @@ class HiddenStateStep:
         return {part.start: effect.follow(x[part], now, after, theta) for effect, part in following}
 
     def _key(self):
-        return (HiddenStateStep, self.inner, self.effects, self.n_declared, self.output)
+        return (
+            HiddenStateStep,
+            self.inner,
+            self.effects,
+            self.n_declared,
+            self.output,
+            self.hold,
+            self.n_inputs,
+        )
 
     def __eq__(self, other) -> bool:
         return isinstance(other, HiddenStateStep) and self._key() == other._key()
@@ -342,7 +363,8 @@ def with_hidden_states(model, physics, hidden: tuple, new: tuple) -> None:
     model.n_declared_states = n_declared
     model.n_states = physics.n_states + len(added)
     followed = model.declared[1] if any(e.follows_output for e in hidden) else None
-    model.step = HiddenStateStep(model.step, hidden, n_declared, followed)
+    hold = getattr(model, "input_hold", "zero")
+    model.step = HiddenStateStep(model.step, hidden, n_declared, followed, hold, model.n_inputs)
     if callable(model.output) and measured_states(model.output) is None:
         model.output = _declared_only(model.output, n_declared)
     model.inequality = _declared_only(physics.inequality, n_declared)

@@ -22,7 +22,7 @@ from ..effects._hidden import (
     sensor_readings,
     with_input_determined,
 )
-from ..model._physics import PhysicsModel, measured_states
+from ..model._physics import PhysicsModel, measured_states, reads_next_input
 from ..runtime._backend import to_device
 from ..simulation._layout import Layout
 from ..simulation._objective import CostWeights
@@ -61,6 +61,7 @@ def build_model(
         equality=physics.equality,
         free_multiple=_board_multiple(physics),
         feature_states=None if basis is None else n_declared_states(physics),
+        next_input=reads_next_input(physics),
     )
 
 

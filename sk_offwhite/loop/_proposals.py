@@ -1,16 +1,19 @@
 """Stage 3 of the loop: the candidate effects, from the hypotheses, the measured output range
 and the variables' physical kinds, plus the strongest dictionary terms promoted into the
-physics and every constant the user declared relaxable."""
+physics, every constant the user declared relaxable, and a first-order hold of inputs that
+move between samples."""
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..diagnose import OutputJump, RangeViolation, correlated_inputs, lagging_outputs
-from ..effects import VaryingParameter
-from ..effects._augment import time_step
+from ..effects import InputHold, VaryingParameter
+from ..effects._augment import continuous_time, time_step
 from ..effects._hidden import n_declared_states
 from ..effects._laws import relaxations
 from ..model._kinds import Kinds, physical_kinds
-from ..model._physics import measured_states
+from ..model._physics import measured_states, reads_next_input
 from ._candidates import Candidate, promoted_terms, propose_effects, unique_by_name
 from ._evidence import output_names
 from ._groups import joint_groups
@@ -49,7 +52,34 @@ def candidates(search: Search, physics, library, hypotheses, facts, run) -> list
         for law in relaxations(physics)
     ]
     terms = promoted(physics, hypotheses, library, names, dt, search.settings.n_promoted)
-    return not_modelled(physics, unique_by_name(found + terms + declared))
+    holds = input_holds(physics, u)
+    return not_modelled(physics, unique_by_name(found + terms + declared + holds))
+
+
+MOVING_SHARE = 0.5
+"""An input moves between its samples when it changes from one sample to the next at more
+than this share of the record's samples; a command in steps repeats its value."""
+
+
+def input_holds(physics, u) -> list[Candidate]:
+    """A first-order hold ([`InputHold`][sk_offwhite.InputHold]) when ``physics`` integrates a
+    right-hand side under a zero-order hold and an input of the record ``u`` moves between
+    samples (`MOVING_SHARE`): a sampled smooth signal, which the plant feels between its
+    samples, where the declared physics holds it."""
+    if not continuous_time(physics) or reads_next_input(physics) or u.shape[1] == 0:
+        return []
+    changes = np.mean(np.abs(np.diff(u, axis=0)) > 0, axis=0)
+    moving = [name for name, share in zip(physics.input_names, changes, strict=True)
+              if share > MOVING_SHARE]  # fmt: skip
+    if not moving:
+        return []
+    verb = "changes" if len(moving) == 1 else "change"
+    why = (
+        f"{', '.join(moving)} {verb} at most samples, as a sampled smooth signal does; the "
+        "declared physics holds each sample until the next. The inputs may move between "
+        "samples."
+    )
+    return [Candidate(InputHold(), why)]
 
 
 def declared_kinds(physics) -> tuple[int, Kinds]:

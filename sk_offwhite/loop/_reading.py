@@ -201,8 +201,7 @@ def _substituted_step(step: Callable, names: tuple[str, ...]) -> Callable:
     """The declared `step` with the law substituted: inside the right-hand side, at every
     stage, for a model of `from_ode`; at the sample otherwise."""
     if isinstance(step, DiscretizedStep):
-        rhs = _Substituted(step.rhs, names)
-        return DiscretizedStep(rhs, step.dt * step.n_substeps, step.method, step.n_substeps)
+        return step.with_rhs(_Substituted(step.rhs, names))
     return _Substituted(step, names)
 
 

@@ -67,7 +67,8 @@ class Switchboard(NamedTuple):
     """The declared physics with every candidate effect switched off, and the switches.
 
     Relaxed laws ([`RelaxedLaw`][sk_offwhite.RelaxedLaw]) need no switch: they change no
-    program, only which parameters are fitted, and are applied to the board as they are.
+    program, only which parameters are fitted, and are applied to the board as they are; so
+    is an input hold ([`InputHold`][sk_offwhite.InputHold]), which changes the integrator.
     """
 
     physics: PhysicsModel
@@ -77,21 +78,21 @@ class Switchboard(NamedTuple):
     @classmethod
     def of(cls, physics: PhysicsModel, effects) -> Switchboard:
         """``physics`` augmented with every one of ``effects`` behind a switch (all off)."""
-        board = tuple(switched(effect) for effect in effects if effect.target != "law")
-        laws = tuple(effect for effect in effects if effect.target == "law")
+        board = tuple(switched(effect) for effect in effects if not _structural(effect))
+        laws = tuple(effect for effect in effects if _structural(effect))
         return cls(augment(physics, *board).with_parameters(**switches(board, ())), board, laws)
 
     def ordered(self, effects) -> tuple:
         """``effects`` in the order they act on the board (relaxed laws last)."""
-        chosen = {switched(effect) for effect in effects if effect.target != "law"}
+        chosen = {switched(effect) for effect in effects if not _structural(effect)}
         laws = tuple(law for law in self.laws if law in set(effects))
         return tuple(s.effect for s in self.board if s in chosen) + laws
 
     def model(self, on, warm: dict[str, Parameter] | None = None) -> PhysicsModel:
         """The physics with the effects ``on`` switched on, started from ``warm``."""
         _check_known(on, [s.effect for s in self.board] + list(self.laws))
-        laws = [effect for effect in on if effect.target == "law"]
-        switched_on = [effect for effect in on if effect.target != "law"]
+        laws = [effect for effect in on if _structural(effect)]
+        switched_on = [effect for effect in on if not _structural(effect)]
         physics = augment(self.physics, *laws) if laws else self.physics
         physics = physics.with_parameters(**switches(self.board, switched_on), **(warm or {}))
         return physics.with_parameters(**_held(physics, self.board, switched_on))
@@ -123,7 +124,14 @@ def single_effect_models(physics: PhysicsModel, effects) -> list:
 
 
 def _shares_a_board(effect) -> bool:
-    return not effect.hidden_states and effect.target != "law"
+    return not effect.hidden_states and not _structural(effect)
+
+
+def _structural(effect) -> bool:
+    """An effect that changes the board's structure rather than adding to it, applied to the
+    board as it is: a relaxed law (which parameters are fitted) or an input hold (the
+    integrator)."""
+    return effect.target in ("law", "hold")
 
 
 def _held(physics: PhysicsModel, board, on) -> dict[str, Parameter]:

@@ -25,7 +25,14 @@ from ..simulation._rollout import take
 from ._kinds import check_kinds
 from ._probe import out_of_range_reads
 
-__all__ = ["DiscretizedStep", "MeasuredStates", "Parameter", "PhysicsModel", "measured_states"]
+__all__ = [
+    "DiscretizedStep",
+    "MeasuredStates",
+    "Parameter",
+    "PhysicsModel",
+    "measured_states",
+    "reads_next_input",
+]
 
 StepFn = Callable[[Any, Any, Mapping[str, Any]], Any]
 
@@ -287,20 +294,26 @@ class PhysicsModel:
         *,
         method: str = "rk4",
         n_substeps: int = 1,
+        hold: str = "zero",
         **kwargs,
     ) -> PhysicsModel:
         """Build a model from a continuous-time right-hand side ``dx/dt = rhs(x, u, theta)``.
 
-        The input is held constant over each sampling interval (zero-order hold) and the
-        ODE is integrated with ``n_substeps`` steps of explicit Euler or classical RK4, as
-        MATLAB ``idnlgrey`` users expect from a continuous-time grey-box model.
+        The ODE is integrated over each sampling interval with ``n_substeps`` steps of
+        explicit Euler or classical RK4, as MATLAB ``idnlgrey`` users expect from a
+        continuous-time grey-box model. ``hold`` says what the input does between two
+        samples: ``"zero"`` holds it (an input that moves in steps, such as a digital
+        command), ``"linear"`` moves it linearly to the next sample (a smooth signal that
+        was sampled: each RK4 step reads $u_k$, $(u_k + u_{k+1})/2$ and $u_{k+1}$).
         """
         sampling_time = _check_real("sampling_time", sampling_time)
         if not (math.isfinite(sampling_time) and sampling_time > 0):
             raise ValueError(f"sampling_time must be finite and positive, got {sampling_time!r}.")
-        step = DiscretizedStep(rhs, float(sampling_time), method, n_substeps)
+        n = _positive_int("n_inputs", n_inputs, allow_zero=True)
+        step = DiscretizedStep(rhs, float(sampling_time), method, n_substeps, hold, n)
         model = cls(step, output, parameters, n_states, n_inputs, **kwargs)
         model.rhs, model.sampling_time, model.method = rhs, float(sampling_time), method
+        model.input_hold = step.hold
         return model
 
     @classmethod
@@ -406,39 +419,77 @@ def _positive_int(argument: str, value, allow_zero: bool = False) -> int:
     return int(value)
 
 
-def _euler(rhs, x, u, theta, dt):
-    return x + dt * rhs(x, u, theta)
+def _euler(rhs, x, inputs, theta, dt):
+    return x + dt * rhs(x, inputs(0.0), theta)
 
 
-def _rk4(rhs, x, u, theta, dt):
-    k1 = rhs(x, u, theta)
-    k2 = rhs(x + 0.5 * dt * k1, u, theta)
-    k3 = rhs(x + 0.5 * dt * k2, u, theta)
-    k4 = rhs(x + dt * k3, u, theta)
+def _rk4(rhs, x, inputs, theta, dt):
+    k1 = rhs(x, inputs(0.0), theta)
+    k2 = rhs(x + 0.5 * dt * k1, inputs(0.5), theta)
+    k3 = rhs(x + 0.5 * dt * k2, inputs(0.5), theta)
+    k4 = rhs(x + dt * k3, inputs(1.0), theta)
     return x + dt / 6.0 * (k1 + 2 * k2 + 2 * k3 + k4)
 
 
 _INTEGRATORS = {"euler": _euler, "rk4": _rk4}
 
+HOLDS = ("zero", "linear")
+"""How a sampled input is taken between two samples: held (``"zero"``) or interpolated
+linearly to the next sample (``"linear"``)."""
+
+
+def check_hold(hold) -> str:
+    """``hold`` if it is one of `HOLDS`, else a ``ValueError`` naming it."""
+    if not isinstance(hold, str) or hold not in HOLDS:
+        raise ValueError(f"hold must be one of {list(HOLDS)}, got {hold!r}.")
+    return hold
+
+
+def _held_inputs(u, n_inputs: int, hold: str, start: float, width: float):
+    """The input at the fraction ``start + width * s`` of the sample, as a function of the
+    sub-step's fraction ``s``: ``u`` itself under a zero-order hold, or when ``u`` holds
+    only this sample's input; under a linear hold ``u = [u_k, u_{k+1}]`` and the input is
+    interpolated between them."""
+    if hold == "zero" or u.shape[0] != 2 * n_inputs:
+        now = u[:n_inputs]
+        return lambda s: now
+    now, following = u[:n_inputs], u[n_inputs:]
+    return lambda s: now + (start + width * s) * (following - now)
+
 
 class DiscretizedStep:
-    r"""Zero-order-hold discretisation of ``rhs`` with ``n_substeps`` integrator steps.
+    r"""Discretisation of ``rhs`` with ``n_substeps`` integrator steps and an input hold.
 
     With step ``dt = sampling_time / n_substeps`` each sub-step applies explicit Euler,
-    $x \leftarrow x + dt\, r(x)$, or classical RK4,
-    $x \leftarrow x + dt (k_1 + 2k_2 + 2k_3 + k_4) / 6$.
+    $x \leftarrow x + dt\, r(x, u(t))$, or classical RK4, whose stages read the input at
+    the start, the middle and the end of the sub-step. Under a zero-order hold
+    (``hold="zero"``) the input is $u_k$ throughout the sample; under a first-order hold
+    (``hold="linear"``) it moves linearly from $u_k$ to $u_{k+1}$,
+    $u(t_k + s T_s) = u_k + s\,(u_{k+1} - u_k)$, the input of a smooth signal that was
+    sampled. The step then takes ``u = [u_k, u_{k+1}]`` (``2 * n_inputs`` entries, as the
+    simulation hands it); given ``u_k`` alone it holds it.
     """
 
-    def __init__(self, rhs: StepFn, sampling_time: float, method: str, n_substeps: int):
+    def __init__(
+        self,
+        rhs: StepFn,
+        sampling_time: float,
+        method: str,
+        n_substeps: int,
+        hold: str = "zero",
+        n_inputs: int = 0,
+    ):
         if method not in _INTEGRATORS:
             raise ValueError(f"method must be one of {sorted(_INTEGRATORS)}, got {method!r}.")
         self.rhs, self.method = rhs, method
         self.n_substeps = _positive_int("n_substeps", n_substeps)
         self.dt = float(sampling_time) / self.n_substeps
+        self.hold = check_hold(hold)
+        self.n_inputs = _positive_int("n_inputs", n_inputs, allow_zero=True)
         self.__name__ = f"{method}({getattr(rhs, '__name__', 'rhs')})"
 
     def _key(self):
-        return (self.rhs, self.method, self.n_substeps, self.dt)
+        return (self.rhs, self.method, self.n_substeps, self.dt, self.hold, self.n_inputs)
 
     def __eq__(self, other) -> bool:
         return isinstance(other, DiscretizedStep) and other._key() == self._key()
@@ -446,11 +497,31 @@ class DiscretizedStep:
     def __hash__(self) -> int:
         return hash(self._key())
 
+    def with_hold(self, hold: str) -> DiscretizedStep:
+        """The same discretisation under another input ``hold``."""
+        return self._changed(self.rhs, hold)
+
+    def with_rhs(self, rhs: StepFn) -> DiscretizedStep:
+        """The same discretisation of another right-hand side."""
+        return self._changed(rhs, self.hold)
+
+    def _changed(self, rhs: StepFn, hold: str) -> DiscretizedStep:
+        sampling_time = self.dt * self.n_substeps
+        return DiscretizedStep(
+            rhs, sampling_time, self.method, self.n_substeps, hold, self.n_inputs
+        )
+
     def __call__(self, x, u, theta):
-        integrate = _INTEGRATORS[self.method]
-        for _ in range(self.n_substeps):
-            x = integrate(self.rhs, x, u, theta, self.dt)
+        integrate, width = _INTEGRATORS[self.method], 1.0 / self.n_substeps
+        for j in range(self.n_substeps):
+            inputs = _held_inputs(u, self.n_inputs, self.hold, j * width, width)
+            x = integrate(self.rhs, x, inputs, theta, self.dt)
         return x
+
+
+def reads_next_input(physics) -> bool:
+    """Whether the step of ``physics`` takes ``[u_k, u_{k+1}]`` (a first-order hold)."""
+    return getattr(physics, "input_hold", "zero") == "linear"
 
 
 class LinearStateSpace:

@@ -40,6 +40,7 @@ __all__ = [
     "multiply_add",
     "output_correction",
     "simulate",
+    "step_rows",
     "take",
     "theta_dict",
 ]
@@ -73,6 +74,9 @@ class Model:
     feature_states : int or None
         The dictionary reads the first ``feature_states`` states and the inputs (the
         declared states of a model whose effects carry hidden states); ``None``: all.
+    next_input : bool
+        The physics' step takes ``[u_k, u_{k+1}]`` (an input interpolated between samples,
+        a first-order hold); the output map and the correction read ``u_k`` alone.
     """
 
     step: Callable
@@ -86,6 +90,7 @@ class Model:
     free_multiple: int = 1
     delta_outputs: tuple[int, ...] = ()
     feature_states: int | None = None
+    next_input: bool = False
 
 
 def theta_dict(model: Model, theta) -> dict:
@@ -151,9 +156,21 @@ def take(v, indices):
     return jnp.stack(entries) if entries else jnp.zeros((0,), v.dtype)
 
 
-def model_step(model: Model, params: dict, x, u):
-    r"""One step of the augmented model: $f(x, u; \theta) + S\delta(x, u; \omega)$."""
-    physics = model.step(x, u, theta_dict(model, params["theta"]))
+def step_rows(model: Model, u):
+    """What the step reads at each sample of the input sequence ``u`` (shape ``(L, n_u)``):
+    ``u`` itself, or ``[u_k, u_{k+1}]`` (shape ``(L, 2 n_u)``, the last sample repeated)
+    when the step reads the next input (``model.next_input``)."""
+    if not model.next_input:
+        return u
+    following = jnp.concatenate([u[1:], u[-1:]], axis=0)
+    return jnp.concatenate([u, following], axis=1)
+
+
+def model_step(model: Model, params: dict, x, u, step_input=None):
+    r"""One step of the augmented model: $f(x, u; \theta) + S\delta(x, u; \omega)$;
+    the physics reads ``step_input`` when given (a row of `step_rows`), else ``u``."""
+    seen = u if step_input is None else step_input
+    physics = model.step(x, seen, theta_dict(model, params["theta"]))
     return jnp.asarray(physics, dtype=x.dtype).reshape(x.shape) + correction(model, params, x, u)
 
 
@@ -182,13 +199,14 @@ def simulate(model: Model, params: dict, x0, u):
     final_state : array of shape (n_x,)
         $\hat x_L$, used to link consecutive shooting windows.
     """
-    theta = theta_dict(model, params["theta"])
+    theta, n_inputs = theta_dict(model, params["theta"]), u.shape[1]
 
-    def advance(x, u_k):
+    def advance(x, row):
+        u_k = row[:n_inputs]
         z_k = model_output(model, params, x, u_k, theta)
-        return model_step(model, params, x, u_k), (x, z_k)
+        return model_step(model, params, x, u_k, row), (x, z_k)
 
-    final_state, (states, outputs) = jax.lax.scan(advance, x0, u)
+    final_state, (states, outputs) = jax.lax.scan(advance, x0, step_rows(model, u))
     return states, outputs, final_state
 
 
