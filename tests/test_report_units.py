@@ -4,12 +4,15 @@ The result is assembled from one short physics-only fit (no loop run): the repor
 reads the result's fields.
 """
 
+import dataclasses
 import json
 
 import numpy as np
+import pysindy as ps
 import pytest
 
-from sk_offwhite import GreyBoxSparseRegressor
+from sk_offwhite import GreyBoxSparseRegressor, Leak, augment
+from sk_offwhite.effects import DictionaryTerm
 from sk_offwhite.datasets import make_leaky_tank
 from sk_offwhite.loop import score_models, write_report
 from sk_offwhite.loop._report import _Units
@@ -136,3 +139,19 @@ def test_bad_units_and_sampling_time_are_refused(report_inputs, tmp_path, kwargs
     with pytest.raises(error, match=match):
         write_report(result, rows, records, tmp_path, title="t", **kwargs)
     assert not list(tmp_path.iterdir())
+
+
+def test_an_added_dictionary_term_is_reported_as_a_stand_in(report_inputs, tmp_path):
+    """A promoted term names no law: the report says so; a named effect is not flagged."""
+    result, _, records = report_inputs
+    term = DictionaryTerm(0, ps.PolynomialLibrary(degree=2), ["x", "u"], 3, name="term_x_x_2")
+    effects = (Leak(0, name="leak_x"), term)
+    u, z = records["estimation"]
+    final = GreyBoxSparseRegressor(augment(result.physics, *effects), max_iter=5).fit(u, z)
+    added = dataclasses.replace(result, final=final, effects=effects)
+    text = write_report(added, [], {"estimation": records["estimation"]}, tmp_path, title="t")
+    lines = [line for line in text.read_text().splitlines() if line.startswith("- `")]
+    term_line = next(line for line in lines if line.startswith("- `term_x_x_2`"))
+    leak_line = next(line for line in lines if line.startswith("- `leak_x`"))
+    assert "names no physical law (a stand-in" in term_line
+    assert "stand-in" not in leak_line and not leak_line.endswith("; ")

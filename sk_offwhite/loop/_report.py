@@ -13,6 +13,7 @@ import numpy as np
 
 from .._validation import check_record
 from ..certify import UnidentifiableWarning, identifiability
+from ..effects import DictionaryTerm
 from ._energy import power_sentence
 from ._evidence import analyse_model
 from ._hypotheses import _signals
@@ -325,11 +326,21 @@ def _added_lines(result, u) -> list[str]:
     u = np.asarray(u, float).reshape(len(states), -1)
     lines = []
     for e in result.effects:
-        line = f"- `{e.name}`: {e.describe(result.physics.state_names, _names(result), values)}; "
-        line += ", ".join(f"{k} = {values[k]:.4g}" for k in e.parameters() if k in values)
-        power = power_sentence(e, result.physics, values, states, u)
-        lines.append(line + (f"; {power}" if power else ""))
+        parts = [
+            e.describe(result.physics.state_names, _names(result), values),
+            ", ".join(f"{k} = {values[k]:.4g}" for k in e.parameters() if k in values),
+            power_sentence(e, result.physics, values, states, u),
+            STAND_IN if isinstance(e, DictionaryTerm) else "",
+        ]
+        lines.append(f"- `{e.name}`: " + "; ".join(part for part in parts if part))
     return lines
+
+
+STAND_IN = (
+    "a dictionary term promoted as it is: it lowers the error but names no physical law "
+    "(a stand-in for what the physics lacks)"
+)
+"""What the report says of an added dictionary term."""
 
 
 def _set_parameter_lines(result) -> list[str]:
