@@ -12,8 +12,8 @@ import pysindy as ps
 import pytest
 
 from sk_offwhite import GreyBoxSparseRegressor, Leak, augment
-from sk_offwhite.effects import DictionaryTerm
 from sk_offwhite.datasets import make_leaky_tank
+from sk_offwhite.effects import DictionaryTerm
 from sk_offwhite.loop import score_models, write_report
 from sk_offwhite.loop._report import _Units
 from sk_offwhite.loop._result import LoopResult
