@@ -4,7 +4,7 @@ For each generator of `sk_offwhite.datasets._varying` (seed 0, ``--n-samples`` s
 record) the loop (`EffectSearchCV`, default settings, the cubic polynomial dictionary)
 runs from the declared physics with the constant. Written per plant: the effect the loop
 added and its description, whether it is the generator's law (the same parameter,
-variable and family), the fitted scale against the truth, the largest relative error of
+variable, family and sign), the fitted scale against the truth, the largest relative error of
 the true declared parameters, the validation RMSE of the declared physics and of the
 chosen model (the validation record only scored), and the wall time.
 
@@ -51,8 +51,9 @@ def law_row(name: str, data, search, seconds: float) -> list:
     values = best.parameters_
     laws = [e for e in search.effects_ if isinstance(e, VaryingParameter)]
     law = laws[0] if laws else None
-    same = law is not None and (law.parameter, law.family) == (
-        truth["parameter"], truth["family"]) and law.variable_name == truth["variable"]  # fmt: skip
+    same = law is not None and (law.parameter, law.family, law.variable_name) == (
+        truth["parameter"], truth["family"], truth["variable"]
+    ) and law.sign(values) == truth["sign"]  # fmt: skip
     scale_error = (
         abs(values[f"{law.name}_scale"] / abs(truth["constants"]["x_s"]) - 1.0) if same else None
     )

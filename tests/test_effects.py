@@ -23,7 +23,9 @@ from sk_offwhite.effects import (
     Leak,
     OutputSaturation,
     Overflow,
+    PowerStiffness,
     RelaxedLaw,
+    Stiffness,
     augment,
     switched,
 )
@@ -315,3 +317,12 @@ def test_single_effects_on_a_board_fit_as_alone_on_one_program_per_layout():
         alone = quick_fit(search, separate, (candidate.effect,), {})
         assert rmse == pytest.approx(alone[0], rel=1e-6)
         assert fitted.keys() == alone[1].keys()
+
+
+@pytest.mark.parametrize(
+    ("coefficient", "word"), [(2.0, "hardening"), (-2.0, "softening"), (None, "nonlinear")]
+)
+def test_a_stiffness_says_whether_it_hardens_by_its_fitted_sign(coefficient, word):
+    values = {} if coefficient is None else {"k3_coefficient": coefficient, "k3_exponent": 3.0}
+    for spring in (Stiffness(1, 0, name="k3"), PowerStiffness(1, 0, name="k3")):
+        assert f"(a {word} stiffness)" in spring.describe(("q", "v"), ("q",), values)

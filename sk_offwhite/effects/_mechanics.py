@@ -143,8 +143,16 @@ class Stiffness(AdditiveEffect):
     def describe(self, state_names, output_names, values=None) -> str:
         return (
             f"the {state_names[self.state]} equation has a restoring term in "
-            f"{state_names[self.position]}^{self.power} (a nonlinear stiffness)"
+            f"{state_names[self.position]}^{self.power} (a {self._kind(values)}stiffness)"
         )
+
+    def _kind(self, values) -> str:
+        """``"hardening "`` or ``"softening "`` by the sign of the fitted coefficient in
+        ``values``; ``"nonlinear "`` without it."""
+        k = (values or {}).get(f"{self.name}_coefficient")
+        if k is None or k == 0:
+            return "nonlinear "
+        return "hardening " if k > 0 else "softening "
 
 
 class PowerStiffness(Stiffness):
@@ -206,8 +214,8 @@ class PowerStiffness(Stiffness):
         exponent = (values or {}).get(f"{self.name}_exponent", self.exponent)
         return (
             f"the {state_names[self.state]} equation has a restoring term in "
-            f"{state_names[self.position]} to the power {float(exponent):.3g} (a nonlinear "
-            "stiffness)"
+            f"{state_names[self.position]} to the power {float(exponent):.3g} (a "
+            f"{self._kind(values)}stiffness)"
         )
 
 

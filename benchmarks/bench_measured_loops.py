@@ -1,0 +1,105 @@
+"""The closed loop on the three measured benchmarks, from their textbook physics.
+
+Runs each example script (``examples/cascaded_tanks_loop.py``, ``examples/emps_loop.py``,
+``examples/silverbox_loop.py``) as a user would, into a temporary folder, and reads the
+report's ``results.json``: the effects the loop added, the declared and the augmented
+physics' validation errors under the benchmark's protocol (its ``init_window`` rows; the
+Cascaded Tanks also under the original protocol, the initial state fitted), the chosen
+model with its validation error, and the wall time. Everything is chosen on the
+estimation record; the validation records are only scored.
+
+Run: ``python benchmarks/bench_measured_loops.py [NAME ...]`` (names: ``cascaded_tanks``,
+``emps``, ``silverbox``); writes ``benchmarks/results/bench_measured_loops.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from _results import write_results
+
+from sk_offwhite.loop._scoring import MODEL_LABELS
+
+EXAMPLES = Path(__file__).resolve().parent.parent / "examples"
+BENCHMARKS = {
+    "cascaded_tanks": ("cascaded_tanks_loop.py", "validation", "V", 1.0),
+    "emps": ("emps_loop.py", "validation", "mm", 1e3),
+    "silverbox": ("silverbox_loop.py", "arrow", "mV", 1e3),
+}
+"""Name: (example script, headline record, unit, scale from SI)."""
+
+COLUMNS = ["benchmark", "record", "unit", "declared physics", "augmented physics",
+           "chosen model", "chosen", "effects added", "seconds"]  # fmt: skip
+
+
+def run_example(script: str, out: Path) -> float:
+    """Run one example into ``out``; its wall time in seconds."""
+    start = time.perf_counter()
+    command = [sys.executable, str(EXAMPLES / script), "--out", str(out), "--quiet"]
+    subprocess.run(command, check=True, cwd=EXAMPLES.parent)
+    return time.perf_counter() - start
+
+
+def rmse(facts: dict, model: str, record: str, protocol: str = "init_window") -> float | None:
+    """The RMSE of ``model`` on ``record`` under ``protocol`` in the report's rows."""
+    rows = [
+        row["rmse"]
+        for row in facts["rows"]
+        if (row["model"], row["record"], row["protocol"]) == (model, record, protocol)
+    ]
+    return rows[0] if rows else None
+
+
+def loop_row(name: str, facts: dict, seconds: float, protocol: str = "init_window") -> list:
+    """One table row from a report's ``results.json``."""
+    _, record, unit, scale = BENCHMARKS[name]
+    chosen_label = MODEL_LABELS[facts["chosen"]]
+
+    def scaled(model):
+        value = rmse(facts, model, record, protocol)
+        return None if value is None else scale * value
+
+    effects = "; ".join(f"{e['name']}: {e['description']}" for e in facts["effects"])
+    return [name + ("" if protocol == "init_window" else f" ({protocol})"), record, unit,
+            scaled("declared physics"), scaled("augmented physics"), scaled(chosen_label),
+            chosen_label, effects or "none", seconds]  # fmt: skip
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("names", nargs="*", choices=[[], *BENCHMARKS], default=[])
+    args = parser.parse_args()
+    rows, data = [], {}
+    with tempfile.TemporaryDirectory() as folder:
+        for name in args.names or BENCHMARKS:
+            out = Path(folder) / name
+            seconds = run_example(BENCHMARKS[name][0], out)
+            facts = json.loads((out / "results.json").read_text())
+            rows.append(loop_row(name, facts, seconds))
+            if name == "cascaded_tanks":
+                rows.append(loop_row(name, facts, seconds, protocol="original"))
+            data[name] = {"effects": facts["effects"], "parameters": facts["parameters"],
+                          "cv_errors": facts["cv_errors"], "rows": facts["rows"]}  # fmt: skip
+            print(dict(zip(COLUMNS, rows[-1], strict=True)), flush=True)
+    table = {
+        "title": "The closed loop on the measured benchmarks",
+        "columns": COLUMNS,
+        "rows": rows,
+        "notes": [
+            "validation RMSE in the benchmark's unit under its protocol (init_window: the "
+            "initial state estimated from the record's first samples, not scored; original: "
+            "the initial state fitted); chosen: the model of lowest cross-validated error on "
+            "the estimation record; seconds: the example's wall time."
+        ],
+    }
+    write_results("bench_measured_loops", [table], data=data)
+
+
+if __name__ == "__main__":
+    main()
