@@ -4,11 +4,11 @@ An effect is the explicit, parametrised form of something a residual analysis ca
 an overflow, a saturation, a friction, a lag. One module per family: limits
 (`Overflow`, `OutputSaturation`, `InputSaturation`, `DeadZone`, `DifferenceDeadZone`),
 terms (`Bias`, `Leak`, `PowerLoss`), mechanics (`Friction`, `Stiffness`, `PowerStiffness`,
-`QuadraticDrag`, `PowerDrag`), play (`Backlash`), lags and delay (`InputLag`, `SensorLag`,
-`InputDelay`), the input between samples (`InputHold`), sensors (`OutputOffset`,
-`SensorCalibration`, `SensorStep`) and laws
-(`RelaxedLaw`, `DictionaryTerm`) and a declared constant that varies
-(`VaryingParameter`). Every name is also importable from `sk_offwhite`.
+`QuadraticDrag`, `PowerDrag`), a transmission's friction (`TransmissionFriction`), play
+(`Backlash`), lags and delay (`InputLag`, `SensorLag`, `InputDelay`), the input between
+samples (`InputHold`), sensors (`OutputOffset`, `SensorCalibration`, `SensorStep`), laws
+(`RelaxedLaw`, `DictionaryTerm`) and a declared constant that varies (`VaryingParameter`).
+Every name is also importable from `sk_offwhite`.
 """
 
 from ._augment import augment
@@ -30,6 +30,7 @@ from ._play import Backlash
 from ._sensors import OutputOffset, SensorCalibration, SensorStep
 from ._switched import Switched, SwitchedTerm, switched
 from ._terms import Bias, Leak, PowerLoss
+from ._transmission import TransmissionFriction
 from ._varying import VaryingParameter
 
 __all__ = [
@@ -67,6 +68,7 @@ __all__ = [
     "Stiffness",
     "Switched",
     "SwitchedTerm",
+    "TransmissionFriction",
     "VaryingParameter",
     "augment",
     "switched",

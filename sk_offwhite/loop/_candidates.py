@@ -67,6 +67,7 @@ from ..effects import (
     SensorLag,
     SensorStep,
     Stiffness,
+    TransmissionFriction,
 )
 from ..model._kinds import ACTUATOR_KINDS, LEVEL_KINDS, POSITION_KINDS, VELOCITY_KINDS, Kinds
 from ._hypotheses import Hypothesis
@@ -261,6 +262,30 @@ def _actuators(hypothesis, u, input_names, kinds: Kinds) -> list[Candidate]:
                 f"{hypothesis.sentence} The actuator of {n} may have a dead zone.",
             ),
         ]
+    return out
+
+
+EFFORT_KINDS = ("force", "torque")
+"""Input kinds a mechanical transmission carries."""
+
+
+def _transmission_losses(hypothesis, u, input_names, states, kinds: Kinds) -> list[Candidate]:
+    """A force or torque named by a hypothesis on a velocity's equation may reach it through
+    a screw or gear whose friction grows with that force
+    ([`TransmissionFriction`][sk_offwhite.TransmissionFriction]), its sign as smooth as a
+    Coulomb friction's (1 % of the velocity's RMS)."""
+    i = hypothesis.equation_index
+    if kinds.states[i] not in VELOCITY_KINDS:
+        return []
+    out = []
+    for j, n in enumerate(input_names):
+        if n not in hypothesis.variables or kinds.inputs[j] not in EFFORT_KINDS:
+            continue
+        effect = TransmissionFriction(
+            j, i, width=0.01 * _rms(states[:, i]), name=f"load_friction_{n}"
+        )
+        why = f"{hypothesis.sentence} The friction of the transmission of {n} may grow with it."
+        out.append(Candidate(effect, why))
     return out
 
 
@@ -568,6 +593,7 @@ def propose_effects(
         found += _constants(hypothesis, states, kinds)
         if u_arr is not None:
             found += _actuators(hypothesis, u_arr, tuple(input_names), kinds)
+            found += _transmission_losses(hypothesis, u_arr, tuple(input_names), states, kinds)
             found += _transmissions(hypothesis, u_arr, tuple(input_names), kinds)
             found += _lags(hypothesis, u_arr, tuple(input_names), dt, correlated_inputs)
         u_rows = np.zeros((len(states), 0)) if u_arr is None else u_arr
