@@ -5,16 +5,23 @@ that its fitted δ reads."""
 import jax
 import jax.numpy as jnp
 import numpy as np
+import pysindy as ps
 import pytest
 
-from sk_offwhite import VaryingParameter, augment
+from sk_offwhite import Bias, VaryingParameter, augment
 from sk_offwhite.datasets._varying import (
     make_hardening_spring,
     make_piezoviscous_bearing,
     make_saturating_inductor,
     make_valve_tank,
 )
-from sk_offwhite.loop._plausibility import chosen_index, stand_in_reasons
+from sk_offwhite.effects import DictionaryTerm
+from sk_offwhite.loop._plausibility import (
+    chosen_index,
+    dictionary_reasons,
+    earns_every_effect,
+    stand_in_reasons,
+)
 from sk_offwhite.loop._proposals import varying_effect
 from sk_offwhite.loop._reading import read_varying_parameters
 
@@ -99,6 +106,27 @@ def test_stand_ins_are_named_and_not_chosen_within_tolerance():
     assert chosen_index([1.0, 0.50, 0.505], [True, False, True], 0.02) == 2
     assert chosen_index([1.0, 0.30, 0.505], [True, False, True], 0.02) == 1
     assert chosen_index([1.0, 0.50, 0.505], [True, True, True], 0.02) == 1
+
+
+def test_a_set_is_adopted_only_when_each_of_its_effects_earns_min_gain():
+    """{a, b} beats {a} by 4 %: b does not earn the 5 % it must, so {a} is chosen, though
+    {a, b} is the best score and beyond the 2 % tolerance; {b, c} earns both."""
+    a, b, c = "a", "b", "c"
+    sets = [frozenset(), frozenset({a}), frozenset({a, b}), frozenset({b}), frozenset({b, c})]
+    scores = [1.0, 0.50, 0.48, 0.70, 0.60]
+    earned = earns_every_effect(sets, scores, 0.05)
+    assert earned == [True, True, False, True, True]
+    assert chosen_index(scores, [True] * 5, 0.02) == 2
+    assert chosen_index(scores, [True] * 5, 0.02, earned) == 1
+    assert earns_every_effect(sets, [1.0, 1.02, 0.9, 1.1, 0.8], 0.05)[1] is False  # worse
+
+
+def test_a_set_with_a_promoted_term_is_a_stand_in():
+    term = DictionaryTerm(1, ps.PolynomialLibrary(degree=3), ["q", "v"], 6, name="term_v_q_3")
+    assert dictionary_reasons([Bias(1), term]) == [
+        "term_v_q_3 is a dictionary term (no physical law)"
+    ]
+    assert dictionary_reasons([Bias(1)]) == []
 
 
 def test_the_reading_becomes_the_effect_that_holds_it():

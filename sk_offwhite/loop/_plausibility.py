@@ -2,7 +2,10 @@ r"""Physical plausibility of an effect set: does it keep the declared physics, o
 
 An effect set that fits only by moving a declared parameter by orders of magnitude from
 the declared physics' fit (a resistance from 2 to 751), or across zero, is a stand-in: it
-lowers the error, but the physics it leaves is not the plant's. The loop never chooses a
+lowers the error, but the physics it leaves is not the plant's; so is a set that holds a
+promoted dictionary term, which names no law. A set whose effects do not each lower the
+cross-validated error by ``min_gain`` over the set without them is not adopted
+(`earns_every_effect`). The loop never chooses a
 stand-in over a physical set within ``tolerance`` of its CV error, and says which one is
 which (`stand_in_reasons`).
 """
@@ -13,7 +16,15 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-__all__ = ["STAND_IN_FACTOR", "chosen_index", "stand_in_reasons"]
+from ..effects import DictionaryTerm
+
+__all__ = [
+    "STAND_IN_FACTOR",
+    "chosen_index",
+    "dictionary_reasons",
+    "earns_every_effect",
+    "stand_in_reasons",
+]
 
 STAND_IN_FACTOR = 10.0
 r"""A declared parameter that moves by more than this factor from its declared fit
@@ -41,9 +52,46 @@ def stand_in_reasons(declared: Mapping, fitted: Mapping) -> list[str]:
     return reasons
 
 
-def chosen_index(scores: Sequence[float], physical: Sequence[bool], tolerance: float) -> int:
-    """Index of the first score within ``tolerance`` (relative) of the smallest, a
-    ``physical`` one when any is within it."""
-    best = min(scores)
-    within = [k for k, score in enumerate(scores) if score <= best * (1.0 + tolerance)]
+def chosen_index(
+    scores: Sequence[float],
+    physical: Sequence[bool],
+    tolerance: float,
+    admissible: Sequence[bool] | None = None,
+) -> int:
+    """Index of the first ``admissible`` score within ``tolerance`` (relative) of the
+    smallest admissible one, a ``physical`` one when any is within it (every score is
+    admissible when ``admissible`` is ``None``; the first is always admissible)."""
+    allowed = [True] * len(scores) if admissible is None else list(admissible)
+    allowed[0] = True
+    best = min(score for score, ok in zip(scores, allowed, strict=True) if ok)
+    within = [
+        k for k, score in enumerate(scores) if allowed[k] and score <= best * (1.0 + tolerance)
+    ]
     return next((k for k in within if physical[k]), within[0])
+
+
+def earns_every_effect(
+    sets: Sequence[frozenset], scores: Sequence[float], min_gain: float
+) -> list[bool]:
+    r"""Whether each effect set earns each of its effects: no strict subset of it among
+    ``sets`` scores within ``min_gain`` of it ($s_{sub} > s / (1 - g)$ for every subset).
+    An effect that lowers the cross-validated error by less than ``min_gain`` over the set
+    without it is not adopted, whatever else the set holds."""
+    bar = 1.0 - min_gain
+    return [
+        all(
+            not (other < members) or not other_score * bar <= score
+            for other, other_score in zip(sets, scores, strict=True)
+        )
+        for members, score in zip(sets, scores, strict=True)
+    ]
+
+
+def dictionary_reasons(effects) -> list[str]:
+    """Why a set holding promoted dictionary terms is no physical statement (empty: it
+    holds none): a term lowers the error but names no law."""
+    terms = [effect.name for effect in effects if isinstance(effect, DictionaryTerm)]
+    if not terms:
+        return []
+    verb = "is a dictionary term" if len(terms) == 1 else "are dictionary terms"
+    return [f"{', '.join(terms)} {verb} (no physical law)"]

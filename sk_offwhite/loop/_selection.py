@@ -21,7 +21,12 @@ import numpy as np
 from ..effects import DictionaryTerm
 from ._cv import structure_cv
 from ._fits import label, member_start, own, quick_fit
-from ._plausibility import chosen_index, stand_in_reasons
+from ._plausibility import (
+    chosen_index,
+    dictionary_reasons,
+    earns_every_effect,
+    stand_in_reasons,
+)
 from ._proposals import capped
 from ._refinement import swap
 from ._scan import scan_note, scan_scores, scanned_pairs, to_fit
@@ -284,13 +289,18 @@ def by_size(steps):
 
 
 def physical_choice(search: Search, physics, trail, steps) -> int:
-    """Index in ``trail`` of the smallest set within ``tolerance`` of the best CV error,
-    a physical one when any is (`chosen_index`); each stand-in that beats the declared
-    physics is noted (``physics`` holds the declared fit's values)."""
+    """Index in ``trail`` of the smallest set within ``tolerance`` of the best CV error
+    among the sets that earn each of their effects (`earns_every_effect`), a physical one
+    when any is (`chosen_index`); each stand-in that beats the declared physics is noted
+    (``physics`` holds the declared fit's values)."""
     declared = {name: p.value for name, p in physics.parameters.items()}
-    reasons = [[]] + [stand_in_reasons(declared, step[1]) for step in steps]
+    reasons = [[]] + [
+        stand_in_reasons(declared, step[1]) + dictionary_reasons(step[0]) for step in steps
+    ]
     scores = [score for _, score in trail]
-    k = chosen_index(scores, [not r for r in reasons], search.settings.tolerance)
+    sets = [frozenset()] + [frozenset(e.name for e in step[0]) for step in steps]
+    earned = earns_every_effect(sets, scores, search.settings.min_gain)
+    k = chosen_index(scores, [not r for r in reasons], search.settings.tolerance, earned)
     for (name, score), why in zip(trail, reasons, strict=True):
         if why and np.isfinite(score) and score < scores[0]:
             chosen = (
