@@ -15,6 +15,7 @@ from sk_offwhite import (
     InputHold,
     Parameter,
     PhysicsModel,
+    SensorLag,
     Stiffness,
     augment,
 )
@@ -76,6 +77,14 @@ def test_an_input_through_an_effect_with_memory_stays_held():
     delay = InputDelay(0, 1e-9 * DT, sampling_time=DT, max_delay=DT)
     both = augment(integrator(), InputHold(), delay)
     np.testing.assert_allclose(outputs(both, u), outputs(integrator(), u), atol=1e-8)
+
+
+def test_a_sensor_that_follows_the_output_reads_the_held_model():
+    """A sensor lag of almost no time constant reads what the held model outputs."""
+    u = np.sin(0.4 * np.arange(30.0))[:, None]
+    lag = SensorLag(0, 1e-6 * DT, sampling_time=DT)
+    with_lag = outputs(augment(integrator(), InputHold(), lag), u)
+    np.testing.assert_allclose(with_lag, outputs(augment(integrator(), InputHold()), u), atol=1e-6)
 
 
 def test_the_loop_proposes_the_hold_for_an_input_that_moves_between_samples():

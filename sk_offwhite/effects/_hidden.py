@@ -170,7 +170,8 @@ class HiddenStateStep:
                 u, hidden_next[part.start] = effect.advance(x[part], u, theta)
         declared = self.inner(x[: self.n_declared], self._held(u, command), theta)
         declared = jnp.asarray(declared, dtype=x.dtype).reshape(self.n_declared)
-        hidden_next.update(self._followed(x, declared, command, theta))
+        sample = command[: self.n_inputs] if self._pair(command) else command
+        hidden_next.update(self._followed(x, declared, sample, theta))
         parts = [
             jnp.reshape(hidden_next[part.start], (part.stop - part.start,)).astype(x.dtype)
             for _, part in self.slices()
@@ -182,11 +183,15 @@ class HiddenStateStep:
         effects with memory delivered are held over the sample (their next value is not
         known yet), the others move to the next sample as commanded."""
         touched = sorted({e.input for e in self.effects if getattr(e, "input", None) is not None})
-        if self.hold == "zero" or not touched or command.shape[0] != 2 * self.n_inputs:
+        if not (touched and self._pair(command)):
             return u
         for i in touched:
             u = u.at[i + self.n_inputs].set(u[i])
         return u
+
+    def _pair(self, u) -> bool:
+        """Whether the step was handed ``[u_k, u_{k+1}]`` (a first-order hold)."""
+        return self.hold == "linear" and u.shape[0] == 2 * self.n_inputs
 
     def _followed(self, x, declared_next, u, theta) -> dict:
         """Next hidden states of the effects that follow the declared output, by the

@@ -451,8 +451,7 @@ def _held_inputs(u, n_inputs: int, hold: str, start: float, width: float):
     only this sample's input; under a linear hold ``u = [u_k, u_{k+1}]`` and the input is
     interpolated between them."""
     if hold == "zero" or u.shape[0] != 2 * n_inputs:
-        now = u[:n_inputs]
-        return lambda s: now
+        return lambda s: u
     now, following = u[:n_inputs], u[n_inputs:]
     return lambda s: now + (start + width * s) * (following - now)
 
