@@ -22,7 +22,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from _results import write_results
+from _results import table, write_results
 
 from sk_offwhite.loop._scoring import MODEL_LABELS
 
@@ -87,18 +87,14 @@ def main() -> None:
             data[name] = {"effects": facts["effects"], "parameters": facts["parameters"],
                           "cv_errors": facts["cv_errors"], "rows": facts["rows"]}  # fmt: skip
             print(dict(zip(COLUMNS, rows[-1], strict=True)), flush=True)
-    table = {
-        "title": "The closed loop on the measured benchmarks",
-        "columns": COLUMNS,
-        "rows": rows,
-        "notes": [
-            "validation RMSE in the benchmark's unit under its protocol (init_window: the "
-            "initial state estimated from the record's first samples, not scored; original: "
-            "the initial state fitted); chosen: the model of lowest cross-validated error on "
-            "the estimation record; seconds: the example's wall time."
-        ],
-    }
-    write_results("bench_measured_loops", [table], data=data)
+    notes = [
+        "validation RMSE in the benchmark's unit under its protocol (init_window: the initial "
+        "state estimated from the record's first samples, not scored; original: the initial "
+        "state fitted); chosen: the model of lowest cross-validated error on the estimation "
+        "record; seconds: the example's wall time."
+    ]
+    tables = [table("The closed loop on the measured benchmarks", COLUMNS, rows, notes)]
+    write_results("bench_measured_loops", tables, data=data)
 
 
 if __name__ == "__main__":
