@@ -5,11 +5,12 @@ than ``max_effects``) or exchanged for one of its effects, each of its effects e
 its richer variant, and each of its effects dropped, started from the set's parameters. An
 addition or exchange whose fit lowers the estimation error (by ``min_gain`` for an
 addition), and a removal, or an exchange for an effect of fewer parameters, whose fit misses
-the data by no more than a lighter set may (``tolerance``), are cross-validated; the best is
-kept when its CV error is lower by ``min_gain``, else the best lighter set within
-``tolerance``. Greedy forward selection misses a set whose members help only in each
-other's company; the refinement reaches it through another order. Promoted dictionary terms
-are left to forward selection, where they must beat a named effect by ``tolerance``.
+the data by no more than a lighter set may, are cross-validated; the best is kept when its
+CV error is lower by ``min_gain``, else the best lighter set within ``min_gain``: an effect
+stays only when it lowers the CV error by ``min_gain``. Greedy forward selection misses a
+set whose members help only in each other's company; the refinement reaches it through
+another order. Promoted dictionary terms are left to forward selection, where they must
+beat a named effect by ``tolerance``.
 """
 
 from __future__ import annotations
@@ -68,7 +69,7 @@ def swap_round(search: Search, board, ranked, chosen: Chosen, fits):
     if base is None:
         return chosen, []
     rows, best = [], Chosen(effects, warm, (1.0 - settings.min_gain) * cv, base)
-    lighter = Chosen(effects, warm, (1.0 + settings.tolerance) * cv, base)
+    lighter = Chosen(effects, warm, cv / (1.0 - settings.min_gain), base)
     passed = passed_moves(search, board, ranked, chosen._replace(fit=base), lighter.cv, fits)
     for (trial, params, quick), (name, score, fit) in zip(
         passed, sets_cv(search, board, passed), strict=True
