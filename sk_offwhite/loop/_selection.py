@@ -72,7 +72,37 @@ def select_effects(search: Search, physics, candidates, base_rmse, declared_cv=N
     chosen, warm, rows = swap(search, board, ranked, (chosen, warm, trail[k][1]), fits)
     rescored = {name for name, _ in rows}
     trail = [row for row in trail if row[0] not in rescored] + rows
+    chosen, warm = physical_instead(search, physics, board, trail, steps, (chosen, warm))
     return board.ordered(chosen), trail, singles, warm, fits
+
+
+def physical_instead(search: Search, physics, board, trail, steps, chosen):
+    """``chosen`` (``(effects, parameters)``, the refined set), or, when it holds a
+    promoted dictionary term, the best physical set among ``steps`` (named effects, the
+    declared parameters kept, `stand_in_reasons`) that is no larger and whose CV error comes
+    within ``tolerance`` of it (a cubic stiffness rather than the term ``q^3`` it equals); a
+    note says so. ``physics`` holds the declared fit's values."""
+    effects, _ = chosen
+    if not dictionary_reasons(effects):
+        return chosen
+    scores = dict(trail)
+    bar = scores.get(label(board.ordered(effects)), np.inf) * (1.0 + search.settings.tolerance)
+    declared = {name: p.value for name, p in physics.parameters.items()}
+    named = [
+        (scores.get(label(board.ordered(step[0])), np.inf), step)
+        for step in steps
+        if len(step[0]) <= len(effects)
+        and not dictionary_reasons(step[0]) + stand_in_reasons(declared, step[1])
+    ]
+    within = [(score, step) for score, step in named if score <= bar]
+    if not within:
+        return chosen
+    _, (found, params, _) = min(within, key=lambda item: item[0])
+    search.notes.append(
+        f"{label(found)} replaces {label(effects)}: named effects within tolerance of the "
+        "dictionary term's CV error."
+    )
+    return found, params
 
 
 def rank_alone(search: Search, candidates, models):
