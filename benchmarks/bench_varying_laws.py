@@ -4,9 +4,10 @@ For each generator of `sk_offwhite.datasets._varying` (seed 0, ``--n-samples`` s
 record) the loop (`EffectSearchCV`, default settings, the cubic polynomial dictionary)
 runs from the declared physics with the constant. Written per plant: the effect the loop
 added and its description, whether it is the generator's law (the same parameter,
-variable, family and sign), the fitted scale against the truth, the largest relative error of
-the true declared parameters, the validation RMSE of the declared physics and of the
-chosen model (the validation record only scored), and the wall time.
+variable, family and sign, or a named effect it equals), the fitted scale against the
+truth, the largest relative error of the true declared parameters, the validation RMSE
+of the declared physics and of the chosen model (the validation record only scored), and
+the wall time.
 
 Run: ``python benchmarks/bench_varying_laws.py [--n-samples N] [NAME ...]``; writes
 ``benchmarks/results/bench_varying_laws.json``.
@@ -18,11 +19,13 @@ import argparse
 import time
 import warnings
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 import pysindy as ps
 from _results import write_results
 
-from sk_offwhite import GreyBoxSparseRegressor, VaryingParameter
+from sk_offwhite import GreyBoxSparseRegressor, Stiffness, VaryingParameter
 from sk_offwhite.datasets._varying import (
     make_hardening_spring,
     make_piezoviscous_bearing,
@@ -45,18 +48,41 @@ def rmse(model, u, z) -> float:
     return float(np.sqrt(np.mean((np.reshape(model.predict(u), z.shape) - z) ** 2)))
 
 
+def law_scale(data, search, values) -> tuple[str | bool, float | None]:
+    r"""Whether the loop added the generator's law, and its fitted scale $x_s$: a
+    `VaryingParameter` of the same parameter, variable, family and sign, or, for a
+    stiffness $k(q) = k (1 + (q/q_s)^2)$, the cubic `Stiffness` it equals
+    (`"equivalent"`; $q_s = \sqrt{-k\, \partial_k r / c}$ with $r$ the velocity's rate
+    per unit deflection and $c$ the cubic coefficient)."""
+    truth = data.varying
+    for law in (e for e in search.effects_ if isinstance(e, VaryingParameter)):
+        if (law.parameter, law.family, law.variable_name, law.sign(values)) == (
+            truth["parameter"], truth["family"], truth["variable"], truth["sign"]):  # fmt: skip
+            return True, values[f"{law.name}_scale"]
+    springs = [e for e in search.effects_ if isinstance(e, Stiffness) and e.power == 3]
+    names = data.physics.state_names
+    if truth["family"] != "polynomial" or not springs or names[springs[0].position] != (
+        truth["variable"]):  # fmt: skip
+        return False, None
+    spring, k = springs[0], truth["parameter"]
+    if spring.describe(names, (), values).find(truth["sign"]) < 0:
+        return False, None
+
+    def rate(theta_k):
+        theta = {**values, k: theta_k}
+        x = jnp.zeros(len(names)).at[spring.position].set(1.0)
+        return data.physics.rhs(x, jnp.zeros(data.physics.n_inputs), theta)[spring.state]
+
+    slope = float(jax.grad(rate)(float(values[k])))
+    return "equivalent", float(np.sqrt(-slope * values[k] / values[f"{spring.name}_coefficient"]))
+
+
 def law_row(name: str, data, search, seconds: float) -> list:
     """One table row of a loop's run on ``data``."""
     truth, best = data.varying, search.best_estimator_
     values = best.parameters_
-    laws = [e for e in search.effects_ if isinstance(e, VaryingParameter)]
-    law = laws[0] if laws else None
-    same = law is not None and (law.parameter, law.family, law.variable_name) == (
-        truth["parameter"], truth["family"], truth["variable"]
-    ) and law.sign(values) == truth["sign"]  # fmt: skip
-    scale_error = (
-        abs(values[f"{law.name}_scale"] / abs(truth["constants"]["x_s"]) - 1.0) if same else None
-    )
+    same, scale = law_scale(data, search, values)
+    scale_error = None if scale is None else abs(scale / abs(truth["constants"]["x_s"]) - 1.0)
     errors = [abs(values[k] / v - 1.0) for k, v in data.true_parameters.items() if v != 0]
     declared = search.result_.set_fits["declared physics"]
     before, after = rmse(declared, data.u_val, data.z_val), rmse(search, data.u_val, data.z_val)

@@ -15,9 +15,10 @@ linear in $p$. It costs one simulation and its forward derivatives, where a fit 
 them; the candidates that share a switchboard share one compiled program for it.
 
 The scan ranks; it does not decide. The `fit_top` best scanned candidates are fitted
-(`sk_offwhite.loop._selection.rank_alone`) with every candidate the scan cannot judge (one
-with memory of its own or a relaxed law, on a model of its own, or whose start does not
-simulate), and the loop's note says how many were scanned and how many fitted.
+(`sk_offwhite.loop._selection.rank_alone`) with every law read from δ and every candidate
+the scan cannot judge (one with memory of its own or a relaxed law, on a model of its own,
+or whose start does not simulate), and the loop's note says how many were scanned and how
+many fitted.
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..effects import DictionaryTerm
+from ..effects import DictionaryTerm, VaryingParameter
 from ._cv import structure_cv
 from ._fits import label, member_start, own, quick_fit
 from ._plausibility import (
@@ -134,8 +134,9 @@ def rank_alone(search: Search, candidates, models):
 
 def scan_and_fit(search: Search, physics, candidates, groups):
     """``(ranked, groups)``: the single fits (`rank_alone`) of the candidates the scan
-    keeps (`sk_offwhite.loop._scan`: the ``fit_top`` best, those it cannot judge and the
-    members of ``groups`` and of the scanned pairs), best first, and ``groups`` with the
+    keeps (`sk_offwhite.loop._scan`: the ``fit_top`` best, those it cannot judge, the
+    members of ``groups`` and of the scanned pairs, and the laws read from δ, the loop's
+    own strongest evidence), best first, and ``groups`` with the
     scanned pairs (`pair_groups`). A note says how many were scanned and fitted."""
     settings = search.settings
     models = candidate_models(physics, candidates, settings.share_programs)
@@ -144,6 +145,7 @@ def scan_and_fit(search: Search, physics, candidates, groups):
     members = {id(effect) for effects, _ in groups for effect in effects}
     needed = {k for i, j, _ in pairs for k in (i, j)}
     needed |= {k for k, c in enumerate(candidates) if id(c.effect) in members}
+    needed |= {k for k, c in enumerate(candidates) if isinstance(c.effect, VaryingParameter)}
     fitted = [keep or k in needed for k, keep in enumerate(to_fit(scores, settings.fit_top))]
     search.notes.append(scan_note(candidates, scores, fitted))
     kept = [k for k, keep in enumerate(fitted) if keep]
