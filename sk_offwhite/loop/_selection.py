@@ -8,10 +8,11 @@ while it lowers it by ``min_gain`` (`forward`; when no candidate helps alone, th
 of the strongest is tried: effects such as Coulomb friction and a force offset only help
 together). The sets of that order, and the nested sets of the candidates that helped alone
 in the order of their gain, are cross-validated, each from its own fit on the whole record;
-the smallest within ``tolerance`` of the best is kept if it beats the declared physics by
-``min_gain``, then refined stepwise (`sk_offwhite.loop._refinement`). A set that moves a
-declared parameter tenfold or flips its sign is a stand-in, kept only when no physical set
-comes within ``tolerance`` of it (`sk_offwhite.loop._plausibility`).
+the smallest within ``tolerance`` of the best, among the sets each of whose effects lowers
+the CV error by ``min_gain``, is kept if it beats the declared physics by ``min_gain``, then
+refined stepwise (`sk_offwhite.loop._refinement`). A set that moves a declared parameter
+tenfold, flips its sign or holds a promoted dictionary term is a stand-in, kept only when
+no physical set comes within ``tolerance`` of it (`sk_offwhite.loop._plausibility`).
 """
 
 from __future__ import annotations
