@@ -27,7 +27,14 @@ QUICK = dict(cv=2, fit_delta=False, max_candidates=2, max_effects=1)
 @parametrize_with_checks(
     [
         GreyBoxSparseRegressorCV(library=None, max_iter=20),
-        EffectSearchCV(GreyBoxSparseRegressor(max_iter=5), cv=2, candidates=[], fit_delta=False),
+        # programs kept between fits: the checks refit many times on a few data shapes
+        EffectSearchCV(
+            GreyBoxSparseRegressor(max_iter=5),
+            cv=2,
+            candidates=[],
+            fit_delta=False,
+            release_programs=False,
+        ),
     ],
     expected_failed_checks=expected_failed_checks,
 )
