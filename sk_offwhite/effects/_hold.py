@@ -27,10 +27,11 @@ class InputHold(Effect):
 
     Only for a physics built with
     [`PhysicsModel.from_ode`][sk_offwhite.PhysicsModel.from_ode] (a discrete-time step has no
-    time between samples to interpolate over); every input of the physics is interpolated.
-    Effects with memory that act on an input ([`InputDelay`][sk_offwhite.InputDelay],
-    [`InputLag`][sk_offwhite.InputLag], [`Backlash`][sk_offwhite.Backlash]) see the samples as
-    before.
+    time between samples to interpolate over); every input of the physics is interpolated,
+    but one that passes through an effect with memory
+    ([`InputDelay`][sk_offwhite.InputDelay], [`InputLag`][sk_offwhite.InputLag],
+    [`Backlash`][sk_offwhite.Backlash]): what that effect delivers is known up to the
+    current sample only, and is held over it.
     """
 
     target = "hold"
