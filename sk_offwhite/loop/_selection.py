@@ -88,12 +88,10 @@ def physical_instead(search: Search, physics, board, trail, steps, chosen):
         return chosen
     scores = dict(trail)
     bar = scores.get(label(board.ordered(effects)), np.inf) * (1.0 + search.settings.tolerance)
-    declared = {name: p.value for name, p in physics.parameters.items()}
     named = [
         (scores.get(label(board.ordered(step[0])), np.inf), step)
         for step in steps
-        if len(step[0]) <= len(effects)
-        and not dictionary_reasons(step[0]) + stand_in_reasons(declared, step[1])
+        if len(step[0]) <= len(effects) and not stand_in_steps(physics, [step])[0]
     ]
     within = [(score, step) for score, step in named if score <= bar]
     if not within:
@@ -326,10 +324,7 @@ def physical_choice(search: Search, physics, trail, steps) -> int:
     among the sets that earn each of their effects (`earns_every_effect`), a physical one
     when any is (`chosen_index`); each stand-in that beats the declared physics is noted
     (``physics`` holds the declared fit's values)."""
-    declared = {name: p.value for name, p in physics.parameters.items()}
-    reasons = [[]] + [
-        stand_in_reasons(declared, step[1]) + dictionary_reasons(step[0]) for step in steps
-    ]
+    reasons = [[]] + stand_in_steps(physics, steps)
     scores = [score for _, score in trail]
     sets = [frozenset()] + [frozenset(e.name for e in step[0]) for step in steps]
     earned = earns_every_effect(sets, scores, search.settings.min_gain)
@@ -341,6 +336,14 @@ def physical_choice(search: Search, physics, trail, steps) -> int:
             )
             search.notes.append(f"{name} fits, but not physical: {'; '.join(why)}{chosen}.")
     return k
+
+
+def stand_in_steps(physics, steps) -> list[list[str]]:
+    """Why each step's effect set is a stand-in (`stand_in_reasons` against the declared
+    fit's values in ``physics``, and `dictionary_reasons`); empty where it is physical."""
+    declared = {name: p.value for name, p in physics.parameters.items()}
+    return [stand_in_reasons(declared, params) + dictionary_reasons(effects)
+            for effects, params, _ in steps]  # fmt: skip
 
 
 def with_richer(effects) -> list:
