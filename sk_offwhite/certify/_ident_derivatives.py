@@ -26,7 +26,7 @@ import jax.numpy as jnp
 
 from ..simulation._layout import Layout
 from ..simulation._objective import residuals, rollout_segments
-from ..simulation._rollout import Model, model_output, model_step, step_rows, theta_dict
+from ..simulation._rollout import Model, sample_step, step_rows, theta_dict
 from ..solvers._core import Problem, linearised
 
 __all__ = ["Perturbation", "cost_hessian", "mixed_derivatives", "output_jacobian"]
@@ -81,9 +81,8 @@ def disturbed_outputs(model: Model, params: dict, segments, disturbance):
 
         def advance(x, step):
             row, d_k = step
-            u_k = row[:n_inputs]
-            z_k = model_output(model, params, x, u_k, theta)
-            return model_step(model, params, x, u_k, row) + d_k, z_k
+            x_next, z_k = sample_step(model, params, theta, x, row, n_inputs)
+            return x_next + d_k, z_k
 
         return jax.lax.scan(advance, x0, (step_rows(model, u), d))[1]
 

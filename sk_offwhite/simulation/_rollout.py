@@ -39,6 +39,7 @@ __all__ = [
     "model_step",
     "multiply_add",
     "output_correction",
+    "sample_step",
     "simulate",
     "step_rows",
     "take",
@@ -183,6 +184,14 @@ def model_output(model: Model, params: dict, x, u, theta: dict):
     return declared + output_correction(model, params, x, u, declared.shape[0])
 
 
+def sample_step(model: Model, params: dict, theta: dict, x, row, n_inputs: int):
+    """``(next state, output)`` of one sample from ``x``, ``row`` a row of `step_rows`
+    (its first ``n_inputs`` entries the sample's input, which the output and the correction
+    read)."""
+    u_k = row[:n_inputs]
+    return model_step(model, params, x, u_k, row), model_output(model, params, x, u_k, theta)
+
+
 @partial(jax.jit, static_argnums=0)
 def simulate(model: Model, params: dict, x0, u):
     r"""Free-run simulation from ``x0`` over the input sequence ``u`` of shape ``(L, n_u)``.
@@ -202,9 +211,8 @@ def simulate(model: Model, params: dict, x0, u):
     theta, n_inputs = theta_dict(model, params["theta"]), u.shape[1]
 
     def advance(x, row):
-        u_k = row[:n_inputs]
-        z_k = model_output(model, params, x, u_k, theta)
-        return model_step(model, params, x, u_k, row), (x, z_k)
+        x_next, z_k = sample_step(model, params, theta, x, row, n_inputs)
+        return x_next, (x, z_k)
 
     final_state, (states, outputs) = jax.lax.scan(advance, x0, step_rows(model, u))
     return states, outputs, final_state
