@@ -185,6 +185,10 @@ def _rms(column: np.ndarray) -> float:
     return float(np.sqrt(np.mean(column**2)) or 1.0)
 
 
+SIGN_WIDTH = 0.01
+"""Width of a friction's smooth sign, as a fraction of its velocity's RMS on the record."""
+
+
 def _mechanical(hypothesis, states, names, kinds: Kinds) -> list[Candidate]:
     """Friction, drag and a stiffness in a velocity's (or rate's) equation."""
     i, name = hypothesis.equation_index, hypothesis.equation
@@ -197,7 +201,8 @@ def _mechanical(hypothesis, states, names, kinds: Kinds) -> list[Candidate]:
     rms, why = _rms(states[:, i]), hypothesis.sentence
     out = [
         Candidate(
-            Friction(i, width=0.01 * rms, name=f"friction_{name}"), f"{why} A Coulomb friction."
+            Friction(i, width=SIGN_WIDTH * rms, name=f"friction_{name}"),
+            f"{why} A Coulomb friction.",
         ),
         Candidate(QuadraticDrag(i, reference=rms, name=f"drag_{name}"), f"{why} A quadratic drag."),
     ]
@@ -273,7 +278,7 @@ def _transmission_losses(hypothesis, u, input_names, states, kinds: Kinds) -> li
     """A force or torque named by a hypothesis on a velocity's equation may reach it through
     a screw or gear whose friction grows with that force
     ([`TransmissionFriction`][sk_offwhite.TransmissionFriction]), its sign as smooth as a
-    Coulomb friction's (1 % of the velocity's RMS)."""
+    Coulomb friction's (`SIGN_WIDTH`)."""
     i = hypothesis.equation_index
     if kinds.states[i] not in VELOCITY_KINDS:
         return []
@@ -282,7 +287,7 @@ def _transmission_losses(hypothesis, u, input_names, states, kinds: Kinds) -> li
         if n not in hypothesis.variables or kinds.inputs[j] not in EFFORT_KINDS:
             continue
         effect = TransmissionFriction(
-            j, i, width=0.01 * _rms(states[:, i]), name=f"load_friction_{n}"
+            j, i, width=SIGN_WIDTH * _rms(states[:, i]), name=f"load_friction_{n}"
         )
         why = f"{hypothesis.sentence} The friction of the transmission of {n} may grow with it."
         out.append(Candidate(effect, why))
