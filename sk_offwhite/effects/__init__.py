@@ -4,10 +4,11 @@ An effect is the explicit, parametrised form of something a residual analysis ca
 an overflow, a saturation, a friction, a lag. One module per family: limits
 (`Overflow`, `OutputSaturation`, `InputSaturation`, `DeadZone`, `DifferenceDeadZone`),
 terms (`Bias`, `Leak`, `PowerLoss`), mechanics (`Friction`, `Stiffness`, `PowerStiffness`,
-`QuadraticDrag`, `PowerDrag`), a transmission's friction (`TransmissionFriction`), play
-(`Backlash`), lags and delay (`InputLag`, `SensorLag`, `InputDelay`), the input between
-samples (`InputHold`), sensors (`OutputOffset`, `SensorCalibration`, `SensorStep`), laws
-(`RelaxedLaw`, `DictionaryTerm`) and a declared constant that varies (`VaryingParameter`).
+`PositionForce`, `QuadraticDrag`, `PowerDrag`), a transmission's friction
+(`TransmissionFriction`), play (`Backlash`), lags and delay (`InputLag`, `SensorLag`,
+`InputDelay`), the input between samples (`InputHold`), sensors (`OutputOffset`,
+`SensorCalibration`, `SensorStep`), laws (`RelaxedLaw`, `DictionaryTerm`) and a declared
+constant that varies (`VaryingParameter`).
 Every name is also importable from `sk_offwhite`.
 """
 
@@ -25,7 +26,14 @@ from ._hold import InputHold
 from ._lags import FirstOrderLag, InputDelay, InputLag, SensorLag
 from ._laws import DictionaryTerm, RelaxedLaw
 from ._limits import DeadZone, DifferenceDeadZone, InputSaturation, OutputSaturation, Overflow
-from ._mechanics import Friction, PowerDrag, PowerStiffness, QuadraticDrag, Stiffness
+from ._mechanics import (
+    Friction,
+    PositionForce,
+    PowerDrag,
+    PowerStiffness,
+    QuadraticDrag,
+    Stiffness,
+)
 from ._play import Backlash
 from ._sensors import OutputOffset, SensorCalibration, SensorStep
 from ._switched import Switched, SwitchedTerm, switched
@@ -56,6 +64,7 @@ __all__ = [
     "OutputOffset",
     "OutputSaturation",
     "Overflow",
+    "PositionForce",
     "PowerDrag",
     "PowerLoss",
     "PowerStiffness",

@@ -10,7 +10,14 @@ from ..model._physics import Parameter
 from ._base import AdditiveEffect
 from ._terms import _check_exponent, _check_reference, signed_power
 
-__all__ = ["Friction", "PowerDrag", "PowerStiffness", "QuadraticDrag", "Stiffness"]
+__all__ = [
+    "Friction",
+    "PositionForce",
+    "PowerDrag",
+    "PowerStiffness",
+    "QuadraticDrag",
+    "Stiffness",
+]
 
 
 class Friction(AdditiveEffect):
@@ -31,6 +38,18 @@ class Friction(AdditiveEffect):
     above ``min_width`` (default: 1 % of the starting width): at a width far below every
     speed on the record the sign is flat in $w$, and a fit that overshoots there
     cannot come back.
+
+    With ``position`` (the index of a position state $q$), the level varies along the
+    stroke, as a worn or unevenly preloaded guide's or screw's does:
+
+    $$
+    g = -\bigl(F_c + F_s e^{-(v/v_s)^2}\bigr)\, e^{\,a (q - q_c)/q_r} \tanh(v / w),
+    $$
+
+    with the centre $q_c$ (``center``) and scale $q_r$ (``reference``) in the position's
+    units (the position's mean and standard deviation on the record make the gradient
+    independent of the position's origin and unit) and the unit-free gradient ``{name}_gradient`` ($a$, either sign, from 0: the friction of
+    constant level).
 
     The richer variant of a Coulomb friction (`richer`) is the Stribeck friction
     whose level $F_s$ (from 0) and velocity $v_s$ (from
@@ -54,6 +73,9 @@ class Friction(AdditiveEffect):
         fit_width: bool = True,
         min_width: float | None = None,
         fit_stribeck_velocity: bool = False,
+        position: int | None = None,
+        center: float = 0.0,
+        reference: float = 1.0,
         name: str = "friction",
     ):
         if not width > 0:
@@ -71,6 +93,8 @@ class Friction(AdditiveEffect):
         self.stribeck_velocity = None if stribeck_velocity is None else float(stribeck_velocity)
         self.fit_width, self.name = bool(fit_width), name
         self.fit_stribeck_velocity = bool(fit_stribeck_velocity)
+        self.position = None if position is None else int(position)
+        self.center, self.reference = float(center), _check_reference(reference)
 
     def parameters(self) -> dict[str, Parameter]:
         params = {
@@ -85,6 +109,8 @@ class Friction(AdditiveEffect):
             params[f"{self.name}_stribeck_velocity"] = Parameter(
                 self.stribeck_velocity, (self.min_width, None)
             )
+        if self.position is not None:
+            params[f"{self.name}_gradient"] = Parameter(0.0)
         return params
 
     def term(self, x, u, theta):
@@ -93,6 +119,9 @@ class Friction(AdditiveEffect):
         if self.stribeck_velocity is not None:
             speed = theta.get(f"{self.name}_stribeck_velocity", self.stribeck_velocity)
             level = level + theta[f"{self.name}_stribeck"] * jnp.exp(-((v / speed) ** 2))
+        if self.position is not None:
+            along = (x[self.position] - self.center) / self.reference
+            level = level * jnp.exp(theta[f"{self.name}_gradient"] * along)
         return -level * jnp.tanh(v / theta[f"{self.name}_width"])
 
     def basis(self, x, u):
@@ -100,7 +129,12 @@ class Friction(AdditiveEffect):
 
     def describe(self, state_names, output_names, values=None) -> str:
         kind = "Coulomb" if self.stribeck_velocity is None else "Coulomb and Stribeck"
-        return f"{state_names[self.velocity]} is braked by a {kind} friction"
+        text = f"{state_names[self.velocity]} is braked by a {kind} friction"
+        if self.position is None:
+            return text
+        gradient = float((values or {}).get(f"{self.name}_gradient", 0.0))
+        trend = "rises" if gradient > 0 else "falls" if gradient < 0 else "varies"
+        return f"{text} whose level {trend} along {state_names[self.position]}"
 
 
 class Stiffness(AdditiveEffect):
@@ -216,6 +250,59 @@ class PowerStiffness(Stiffness):
             f"the {state_names[self.state]} equation has a restoring term in "
             f"{state_names[self.position]} to the power {float(exponent):.3g} (a "
             f"{self._kind(values)}stiffness)"
+        )
+
+
+class PositionForce(AdditiveEffect):
+    r"""A force that varies with a position: a spring, a cable or hose that the carriage
+    drags, a slope, a magnet's pull; a polynomial of the position about a centre,
+
+    $$
+    g = \sum_{d=1}^{D} c_d \left(\frac{q - q_c}{q_r}\right)^d, \qquad q = x_{position},
+    $$
+
+    of ``degree`` $D \ge 1$, with the centre $q_c$ (``center``) and scale $q_r$
+    (``reference``) in the position's units (with the position's mean and standard
+    deviation on the record the coefficients do not depend on where the position's origin
+    lies or on its unit). Parameters ``{name}_c1`` ... ``{name}_c{D}``
+    (rates of the equation's state, either sign; $c_1$ from ``c1``, the others from 0).
+    A constant force is a [`Bias`][sk_offwhite.Bias]; a restoring force about the
+    position's origin, a [`Stiffness`][sk_offwhite.Stiffness].
+    """
+
+    def __init__(
+        self,
+        state: int,
+        position: int,
+        *,
+        degree: int = 2,
+        c1: float = 0.0,
+        center: float = 0.0,
+        reference: float = 1.0,
+        name: str = "position_force",
+    ):
+        if int(degree) < 1:
+            raise ValueError(f"degree must be >= 1, got {degree!r}.")
+        self.state, self.position, self.degree = int(state), int(position), int(degree)
+        self.c1, self.center = float(c1), float(center)
+        self.reference, self.name = _check_reference(reference), name
+
+    def parameters(self) -> dict[str, Parameter]:
+        higher = {f"{self.name}_c{d}": Parameter(0.0) for d in range(2, self.degree + 1)}
+        return {f"{self.name}_c1": Parameter(self.c1), **higher}
+
+    def term(self, x, u, theta):
+        s = (x[self.position] - self.center) / self.reference
+        return sum(theta[f"{self.name}_c{d}"] * s**d for d in range(1, self.degree + 1))
+
+    def basis(self, x, u):
+        return (x[:, self.position] - self.center) / self.reference
+
+    def describe(self, state_names, output_names, values=None) -> str:
+        return (
+            f"the {state_names[self.state]} equation has a force that varies with "
+            f"{state_names[self.position]} (a polynomial of degree {self.degree}: a spring, "
+            "a cable, a slope)"
         )
 
 
