@@ -119,6 +119,17 @@ def check_record(u, z) -> tuple[np.ndarray, np.ndarray]:
     return u, z.reshape(z.shape[0], -1)
 
 
+def _checked_experiment(e: int, u, z) -> tuple[np.ndarray, np.ndarray]:
+    """Experiment ``e``'s ``(u, z)``, each 2-D, finite, of a representable size, and of
+    equal lengths."""
+    u, z = _check_one(f"u[{e}]", u), _check_one(f"z[{e}]", z, False)
+    check_magnitude(f"u[{e}]", u)
+    check_magnitude(f"z[{e}]", z)
+    if u.shape[0] != z.shape[0]:
+        raise ValueError(f"u[{e}] has {u.shape[0]} samples but z[{e}] has {z.shape[0]}.")
+    return u, z
+
+
 def as_records(u, z) -> list[tuple[np.ndarray, np.ndarray]]:
     """Validate a list of experiments ``[(u_e, z_e)]`` (each 2-D, finite, equal lengths)."""
     if not is_experiment_list(u) or len(u) != len(z):
@@ -126,16 +137,7 @@ def as_records(u, z) -> list[tuple[np.ndarray, np.ndarray]]:
             "u and z must both be lists of 2-D arrays with one entry per experiment; got "
             f"{type(u).__name__} of length {len(u)} and {type(z).__name__} of length {len(z)}."
         )
-    records = [
-        (_check_one(f"u[{e}]", ue), _check_one(f"z[{e}]", ze, False))
-        for e, (ue, ze) in enumerate(zip(u, z, strict=True))
-    ]
-    for e, (ue, ze) in enumerate(records):
-        check_magnitude(f"u[{e}]", ue)
-        check_magnitude(f"z[{e}]", ze)
-    for e, (ue, ze) in enumerate(records):
-        if ue.shape[0] != ze.shape[0]:
-            raise ValueError(f"u[{e}] has {ue.shape[0]} samples but z[{e}] has {ze.shape[0]}.")
+    records = [_checked_experiment(e, ue, ze) for e, (ue, ze) in enumerate(zip(u, z, strict=True))]
     widths = {(ue.shape[1], ze.shape[1]) for ue, ze in records}
     if len(widths) != 1:
         raise ValueError(f"all experiments must have the same numbers of columns, got {widths}.")

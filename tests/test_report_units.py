@@ -109,7 +109,7 @@ def test_an_rmse_unit_needs_one_unit_for_every_output():
             ValueError,
             "records must hold an 'estimation'",
         ),
-        (lambda r: [r["estimation"]], TypeError, "records must be a dict"),
+        (lambda r: [r["estimation"]], TypeError, "records must be a non-empty dict"),
         (lambda r: {"estimation": r["estimation"][0]}, ValueError, r"records\['estimation'\]"),
     ],
 )

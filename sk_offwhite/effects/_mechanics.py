@@ -48,8 +48,8 @@ class Friction(AdditiveEffect):
 
     with the centre $q_c$ (``center``) and scale $q_r$ (``reference``) in the position's
     units (the position's mean and standard deviation on the record make the gradient
-    independent of the position's origin and unit) and the unit-free gradient ``{name}_gradient`` ($a$, either sign, from 0: the friction of
-    constant level).
+    independent of the position's origin and unit) and the unit-free gradient
+    ``{name}_gradient`` ($a$, either sign, from 0: the friction of constant level).
 
     The richer variant of a Coulomb friction (`richer`) is the Stribeck friction
     whose level $F_s$ (from 0) and velocity $v_s$ (from

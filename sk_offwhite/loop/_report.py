@@ -11,13 +11,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validation import check_record
 from ..certify import UnidentifiableWarning, identifiability
 from ..effects import DictionaryTerm
 from ._energy import power_sentence
 from ._evidence import analyse_model
 from ._hypotheses import _signals
-from ._scoring import MODEL_LABELS, _protocol_metrics
+from ._scoring import MODEL_LABELS, _protocol_metrics, checked_records
 
 __all__ = ["write_report"]
 
@@ -72,26 +71,14 @@ class _Units:
 
 
 def _checked_records(records) -> dict:
-    """``records`` as a dict of validated ``(u, z)`` pairs holding ``"estimation"``, or an
-    error naming ``records`` and what is wrong."""
-    if not isinstance(records, dict):
-        raise TypeError(
-            "records must be a dict of record names to (u, z) pairs, for example "
-            f"{{'estimation': (u_est, z_est)}}, got {type(records).__name__}."
-        )
-    if "estimation" not in records:
+    """``records`` as a dict of validated ``(u, z)`` pairs holding ``"estimation"``
+    (`checked_records`), or an error naming ``records`` and what is wrong."""
+    checked = checked_records(records)
+    if "estimation" not in checked:
         raise ValueError(
             "records must hold an 'estimation' entry, the (u, z) record the loop was fitted "
-            f"on; got the entries {sorted(map(str, records))}."
+            f"on; got the entries {sorted(map(str, checked))}."
         )
-    checked = {}
-    for name, pair in records.items():
-        if not isinstance(pair, tuple | list) or len(pair) != 2:
-            raise ValueError(f"records[{name!r}] must be a (u, z) pair of arrays.")
-        try:
-            checked[name] = check_record(*pair)
-        except (TypeError, ValueError) as error:
-            raise type(error)(f"records[{name!r}]: {error}") from error
     return checked
 
 

@@ -30,6 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..fitting._problem import build_model
+from ..fitting._sparsity import output_scale
 from ..simulation._rollout import simulate
 from ._switchboard import Switchboard
 from ._variants import mechanism
@@ -77,7 +78,7 @@ def candidate_score(model_physics, u: np.ndarray, z: np.ndarray) -> float:
             jnp.asarray(model_physics.x0, jnp.float64),
             jnp.asarray(u, jnp.float64),
         )
-    scale = _output_scale(z)
+    scale = output_scale([(None, z)])
     outputs = np.asarray(outputs).reshape(z.shape)
     jacobian = np.concatenate(
         [np.asarray(by_theta)[..., free], np.asarray(by_x0)[..., free_states]], axis=-1
@@ -87,12 +88,6 @@ def candidate_score(model_physics, u: np.ndarray, z: np.ndarray) -> float:
     if not (np.all(np.isfinite(residual)) and np.all(np.isfinite(jacobian))):
         return np.nan
     return step_error(residual, jacobian)
-
-
-def _output_scale(z: np.ndarray) -> np.ndarray:
-    """Each output's standard deviation (1 for a constant one)."""
-    spread = np.std(z, axis=0)
-    return np.where(spread > 0, spread, 1.0)
 
 
 def scan_scores(search, models, candidates) -> list[float]:
