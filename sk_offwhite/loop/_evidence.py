@@ -5,14 +5,18 @@ r"""The first stages of the loop: the declared physics fitted, and what it canno
    starts the later fits from its declared value: along a flat direction the fitted point
    is arbitrary, and one that ran off toward a limit can leave the later fits no way back.
 2. **Evidence.** At that fit, every dictionary term's projected gain: what it would explain
-   that no re-adjustment of the declared parameters can. The strongest terms make up the
-   hypotheses ([`evidence_hypotheses`][sk_offwhite.loop.evidence_hypotheses]); the fitted
-   sparse $\delta$ adds its own when it beats the declared physics under cross-validation.
+   that no re-adjustment of the declared parameters can; with a pysindy dictionary, also the
+   gain of the functions a physicist tries first for each declared kind (`with_kind_terms`:
+   a velocity's sign and $v|v|$, a level's square root, the size of an input that changes
+   sign). The strongest terms make up the hypotheses
+   ([`evidence_hypotheses`][sk_offwhite.loop.evidence_hypotheses]); the fitted sparse
+   $\delta$ adds its own when it beats the declared physics under cross-validation.
 """
 
 from __future__ import annotations
 
 import warnings
+from dataclasses import replace
 
 import numpy as np
 
@@ -24,6 +28,7 @@ from ..model._equations import output_name
 from ..runtime._parallel import gather, start_workers
 from ._fits import fit_continued, warm_physics
 from ._hypotheses import evidence_hypotheses, form_hypotheses
+from ._kind_terms import with_kind_terms
 from ._scoring import MODEL_LABELS
 from ._search import FIT_ERRORS, Search
 
@@ -104,13 +109,25 @@ def output_names(physics, n_outputs: int) -> list[str]:
 
 
 def read_evidence(search: Search, physics, library):
-    """The physics-only fit with the dictionary's evidence, and its hypotheses."""
+    """The physics-only fit with the evidence of the dictionary and of the kinds' functions
+    (`with_kind_terms`), and its hypotheses; a kind function is evidence only, never a term
+    to promote (its column is -1)."""
+    library, own = with_kind_terms(library, physics, search.u)
     evidence = search.attempt("evidence", evidence_fit, search, physics, library)
     if evidence is None:
         return None, []
     run = evidence.simulate(search.u)
     share = search.settings.min_share
-    return evidence, evidence_hypotheses(evidence, run, search.u, min_share=share)
+    hypotheses = evidence_hypotheses(evidence, run, search.u, min_share=share)
+    return evidence, [_kind_terms_unpromoted(h, own) for h in hypotheses]
+
+
+def _kind_terms_unpromoted(hypothesis, own: int | None):
+    """``hypothesis`` with the columns of its terms beyond the dictionary's own ``own`` at -1."""
+    if own is None:
+        return hypothesis
+    terms = tuple(t if t.column < own else replace(t, column=-1) for t in hypothesis.terms)
+    return replace(hypothesis, terms=terms)
 
 
 def evidence_fit(search: Search, physics, library) -> GreyBoxSparseRegressor:

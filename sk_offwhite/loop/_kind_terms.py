@@ -1,0 +1,119 @@
+r"""Evidence a physicist would look for first, by the declared kind of each variable.
+
+The loop's evidence (the projected gain of every dictionary term at the declared fit)
+is read on the user's dictionary and, for a pysindy dictionary, on the functions a
+physicist tries first for each declared kind:
+
+| kind | functions |
+|---|---|
+| velocity, rate | $\operatorname{sign}(v)$ (a Coulomb friction), $v\lvert v\rvert$ (a drag) |
+| level | $\sqrt{\lvert h\rvert}$ (an outflow through an orifice) |
+| an input that changes sign | $\lvert u\rvert$ (a loss in the size of an effort) |
+
+so that a friction shows up as a sign of the velocity and not as the polynomial that
+resembles it. Each function is unit-free: rescaling its variable rescales its column,
+which the gains do not see. The added terms are evidence only: they name what an
+equation lacks in the hypotheses, and are never promoted into the physics as terms
+themselves (the effects they point at are).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..effects._hidden import n_declared_states
+from ..model._kinds import LEVEL_KINDS, VELOCITY_KINDS, physical_kinds
+
+__all__ = ["with_kind_terms"]
+
+
+def _xp(x):
+    """``numpy`` for numpy arrays (pysindy's evaluation), ``jax.numpy`` otherwise."""
+    return np if isinstance(x, np.ndarray) else jnp
+
+
+def sign_of(x):
+    """The sign of ``x``: a Coulomb friction's shape."""
+    return _xp(x).sign(x)
+
+
+def signed_square(x):
+    """``x |x|``: a drag's shape."""
+    return x * _xp(x).abs(x)
+
+
+def root_of(x):
+    """``sqrt(|x|)``: an orifice's outflow from a level."""
+    return _xp(x).sqrt(_xp(x).abs(x))
+
+
+def size_of(x):
+    """``|x|``: a loss in the size of an effort."""
+    return _xp(x).abs(x)
+
+
+def sign_name(x: str) -> str:
+    return f"sign({x})"
+
+
+def signed_square_name(x: str) -> str:
+    return f"{x}|{x}|"
+
+
+def root_name(x: str) -> str:
+    return f"sqrt|{x}|"
+
+
+def size_name(x: str) -> str:
+    return f"|{x}|"
+
+
+def kind_groups(physics, u: np.ndarray) -> list[tuple[tuple, tuple, list[int]]]:
+    """``(functions, names, columns of v = [x; u])`` of each kind's functions, for the
+    declared states and inputs that have that kind (an input only where it changes
+    sign: elsewhere $|u|$ is $\\pm u$, a column the dictionary holds)."""
+    n_declared = n_declared_states(physics)
+    kinds = physical_kinds(physics)
+    states = kinds.states[:n_declared]
+    velocities = [i for i, kind in enumerate(states) if kind in VELOCITY_KINDS]
+    levels = [i for i, kind in enumerate(states) if kind in LEVEL_KINDS]
+    u = np.asarray(u, float)
+    signed = [n_declared + j for j in range(u.shape[1]) if u[:, j].min() < 0 < u[:, j].max()]
+    groups = [
+        ((sign_of, signed_square), (sign_name, signed_square_name), velocities),
+        ((root_of,), (root_name,), levels),
+        ((size_of,), (size_name,), signed),
+    ]
+    return [group for group in groups if group[2]]
+
+
+def with_kind_terms(library, physics, u) -> tuple[object, int | None]:
+    """The evidence dictionary: ``library`` with the kind functions of ``physics``'
+    variables appended (`kind_groups`), and the number of columns of ``library`` itself
+    (which come first); ``(library, None)`` where it is no pysindy library, or where no
+    variable has a kind with functions."""
+    import pysindy as ps
+
+    if not isinstance(library, ps.feature_library.base.BaseFeatureLibrary):
+        return library, None
+    groups = kind_groups(physics, u)
+    if not groups:
+        return library, None
+    n_variables = n_declared_states(physics) + physics.n_inputs
+    libraries = [library] + [
+        ps.CustomLibrary(list(functions), list(names)) for functions, names, _ in groups
+    ]
+    inputs: Sequence[list[int]] = [list(range(n_variables))] + [c for *_, c in groups]
+    combined = ps.GeneralizedLibrary(libraries, inputs_per_library=inputs)
+    return combined, _n_columns(library, physics)
+
+
+def _n_columns(library, physics) -> int:
+    """The number of columns ``library`` has on ``physics``' variables."""
+    from ..dictionaries import compile_basis
+
+    names = tuple(physics.state_names[: n_declared_states(physics)]) + tuple(physics.input_names)
+    return len(compile_basis(library, names, 1).names)

@@ -1,0 +1,100 @@
+"""The evidence's functions by declared kind: which variables get which, how they join the
+user's dictionary, and a friction that shows up as the sign of the velocity."""
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pysindy as ps
+
+from sk_offwhite import Friction, Parameter, PhysicsModel, RidgeBasis, augment
+from sk_offwhite.dictionaries import compile_basis
+from sk_offwhite.fitting._problem import build_model
+from sk_offwhite.loop import LoopSettings
+from sk_offwhite.loop._candidates import promoted_terms
+from sk_offwhite.loop._evidence import read_evidence
+from sk_offwhite.loop._kind_terms import kind_groups, with_kind_terms
+from sk_offwhite.loop._search import Search
+from sk_offwhite.simulation._rollout import simulate
+
+DT = 0.01
+
+
+def drive_rhs(x, u, theta):
+    return jnp.stack([x[1], (u[0] - theta["Fv"] * x[1]) / theta["M"]])
+
+
+def drive(state_kinds=("position", "velocity")) -> PhysicsModel:
+    parameters = {"M": Parameter(2.0, (0.01, None)), "Fv": 4.0}
+    return PhysicsModel.from_ode(
+        drive_rhs, DT, output=0, parameters=parameters, n_states=2, n_inputs=1,
+        state_names=("q", "v"), input_names=("tau",), state_kinds=state_kinds,
+        input_kinds=("force",),
+    )  # fmt: skip
+
+
+def test_each_kind_gets_its_functions_and_a_one_signed_input_none():
+    u = np.linspace(-1.0, 1.0, 20)[:, None]
+    groups = [([f("x") for f in names], columns) for _, names, columns in kind_groups(drive(), u)]
+    assert groups == [(["sign(x)", "x|x|"], [1]), (["|x|"], [2])]
+    tank = PhysicsModel.from_ode(
+        lambda x, u, theta: jnp.stack([u[0] - theta["k"] * x[0]]), DT, output=0,
+        parameters={"k": 1.0}, n_states=1, n_inputs=1, state_kinds=("level",),
+    )  # fmt: skip
+    groups = [([f("h") for f in names], columns) for _, names, columns in kind_groups(tank, u)]
+    assert groups == [(["sqrt|h|"], [0]), (["|h|"], [1])]
+    assert [columns for *_, columns in kind_groups(tank, np.abs(u))] == [[0]]
+
+
+def test_the_kind_columns_come_after_the_dictionary_s_own():
+    library = ps.PolynomialLibrary(degree=2)
+    combined, own = with_kind_terms(library, drive(), np.linspace(-1, 1, 20)[:, None])
+    names = compile_basis(combined, ("q", "v", "tau"), 1).names
+    assert own == len(compile_basis(library, ("q", "v", "tau"), 1).names) == 10
+    assert names[own:] == ("sign(v)", "v|v|", "|tau|")
+    assert library.get_params() == ps.PolynomialLibrary(degree=2).get_params()  # untouched
+    ridge = RidgeBasis()
+    assert with_kind_terms(ridge, drive(), np.ones((20, 1))) == (ridge, None)
+
+
+def test_the_functions_are_the_same_in_numpy_and_in_jax():
+    x = np.array([-2.0, -0.5, 0.0, 0.5, 2.0])
+    combined, own = with_kind_terms(ps.PolynomialLibrary(degree=1), drive(), x[:, None])
+    v = np.column_stack([x, x, x])
+    with jax.enable_x64(True):
+        jax_rows = np.asarray(
+            jax.vmap(lambda row: compile_basis(combined, ("q", "v", "tau"), 1).evaluate({}, row))(
+                jnp.asarray(v)
+            )
+        )[:, 0, own:]
+    expected = np.column_stack([np.sign(x), x * np.abs(x), np.abs(x)])
+    np.testing.assert_allclose(jax_rows, expected)
+
+
+def friction_record(n: int = 600, seed: int = 0):
+    """The drive with a Coulomb friction the declared physics lacks."""
+    rng = np.random.default_rng(seed)
+    force = np.convolve(rng.normal(0, 6.0, n + 50), np.ones(25) / 5, "same")[:n, None]
+    friction = Friction(1, coulomb=1.0, width=1e-3, fit_width=False, name="friction")
+    truth = augment(drive(), friction)
+    with jax.enable_x64(True):
+        params = {"theta": jnp.asarray(truth.parameter_values())}
+        _, z, _ = simulate(build_model(truth, None, ()), params, jnp.zeros(2), jnp.asarray(force))
+    z = np.asarray(z)
+    return force, z + rng.normal(0, 1e-3 * np.std(z), z.shape)
+
+
+def test_a_missing_friction_shows_up_as_an_odd_function_of_the_velocity_not_as_v2():
+    """The polynomial dictionary alone offers only sign-blind or mixed terms for a Coulomb
+    friction (``v^2``, ``v tau``); the velocity's kind adds the odd shapes, which carry the
+    evidence, and are never promoted as terms themselves."""
+    u, z = friction_record()
+    search = Search(u, z, LoopSettings(n_jobs=1))
+    library = ps.PolynomialLibrary(degree=2)
+    evidence, hypotheses = read_evidence(search, drive(), library)
+    strongest = hypotheses[0]
+    assert strongest.equation == "v"
+    assert strongest.terms[0].feature in ("sign(v)", "v|v|") and strongest.terms[0].column == -1
+    gains = dict(zip(evidence.feature_names_, evidence.term_gain_[1], strict=True))  # v's
+    assert min(gains["sign(v)"], gains["v|v|"]) > 1.5 * max(gains["v^2"], gains["v tau"])
+    promoted = promoted_terms(hypotheses, library, ("q", "v", "tau"), DT)
+    assert all("sign" not in c.effect.name and "|" not in c.effect.name for c in promoted)
