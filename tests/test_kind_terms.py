@@ -1,6 +1,8 @@
 """The evidence's functions by declared kind: which variables get which, how they join the
 user's dictionary, and a friction that shows up as the sign of the velocity."""
 
+import re
+
 import jax
 import jax.numpy as jnp
 import numpy as np
@@ -12,7 +14,7 @@ from sk_offwhite.fitting._problem import build_model
 from sk_offwhite.loop import LoopSettings
 from sk_offwhite.loop._candidates import promoted_terms
 from sk_offwhite.loop._evidence import read_evidence
-from sk_offwhite.loop._kind_terms import kind_groups, with_kind_terms
+from sk_offwhite.loop._kind_terms import kind_groups, sign_of, with_kind_terms
 from sk_offwhite.loop._search import Search
 from sk_offwhite.simulation._rollout import simulate
 
@@ -84,17 +86,29 @@ def friction_record(n: int = 600, seed: int = 0):
 
 
 def test_a_missing_friction_shows_up_as_an_odd_function_of_the_velocity_not_as_v2():
-    """The polynomial dictionary alone offers only sign-blind or mixed terms for a Coulomb
-    friction (``v^2``, ``v tau``); the velocity's kind adds the odd shapes, which carry the
-    evidence, and are never promoted as terms themselves."""
+    """The polynomial dictionary offers only sign-blind or mixed terms for a Coulomb
+    friction (``v^2``, ``q tau``); the velocity's kind adds the odd shapes, which explain
+    more, in a note. The hypotheses and the promoted terms are the dictionary's alone."""
     u, z = friction_record()
     search = Search(u, z, LoopSettings(n_jobs=1))
     library = ps.PolynomialLibrary(degree=2)
-    evidence, hypotheses = read_evidence(search, drive(), library)
-    strongest = hypotheses[0]
-    assert strongest.equation == "v"
-    assert strongest.terms[0].feature in ("sign(v)", "v|v|") and strongest.terms[0].column == -1
-    gains = dict(zip(evidence.feature_names_, evidence.term_gain_[1], strict=True))  # v's
-    assert min(gains["sign(v)"], gains["v|v|"]) > 1.5 * max(gains["v^2"], gains["v tau"])
+    _, hypotheses = read_evidence(search, drive(), library)
+    (note,) = search.notes
+    assert note.startswith("In the v equation the functions of the variables' kinds")
+    found = note.split("dictionary: ")[1].split(" of the")[0]
+    assert sorted(re.sub(r" \d+%", "", found).split(", ")) == ["sign(v)", "v|v|"]
+    assert "|tau|" not in found
+    assert all(0 <= t.column < 10 for h in hypotheses for t in h.terms)
     promoted = promoted_terms(hypotheses, library, ("q", "v", "tau"), DT)
-    assert all("sign" not in c.effect.name and "|" not in c.effect.name for c in promoted)
+    assert promoted and all(isinstance(c.effect.column, int) for c in promoted)
+
+
+def test_no_note_where_no_kind_function_beats_the_dictionary():
+    u, z = friction_record()
+    search = Search(u, z, LoopSettings(n_jobs=1))
+    with_sign = ps.GeneralizedLibrary(
+        [ps.PolynomialLibrary(degree=1), ps.CustomLibrary([sign_of], [lambda x: f"s({x})"])],
+        inputs_per_library=[[0, 1, 2], [1]],
+    )
+    read_evidence(search, drive(), with_sign)
+    assert not any("sign(v)" in note for note in search.notes)

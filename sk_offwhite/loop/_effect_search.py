@@ -11,9 +11,9 @@ cross-validated error; ``predict`` and ``score`` are that model's.
 The stages, each a module of this package:
 
 1. the declared physics fitted and cross-validated (`_evidence`);
-2. the evidence: what each dictionary term, and each function a physicist tries first for
-   the declared kinds (a velocity's sign, a level's square root: `_kind_terms`), would
-   explain that the declared parameters cannot absorb, and the hypotheses of the fitted
+2. the evidence: what each dictionary term would explain that the declared parameters cannot
+   absorb (and, in a note, the functions a physicist tries first for the declared kinds: a
+   velocity's sign, a level's square root, `_kind_terms`), and the hypotheses of the fitted
    sparse $\delta$ (`_evidence`, `_corrections`);
 3. the candidates, from the hypotheses, the measured range and the variables' kinds
    (`_proposals`, `_candidates`);

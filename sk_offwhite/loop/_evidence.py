@@ -5,18 +5,18 @@ r"""The first stages of the loop: the declared physics fitted, and what it canno
    starts the later fits from its declared value: along a flat direction the fitted point
    is arbitrary, and one that ran off toward a limit can leave the later fits no way back.
 2. **Evidence.** At that fit, every dictionary term's projected gain: what it would explain
-   that no re-adjustment of the declared parameters can; with a pysindy dictionary, also the
-   gain of the functions a physicist tries first for each declared kind (`with_kind_terms`:
-   a velocity's sign and $v|v|$, a level's square root, the size of an input that changes
-   sign). The strongest terms make up the hypotheses
-   ([`evidence_hypotheses`][sk_offwhite.loop.evidence_hypotheses]); the fitted sparse
-   $\delta$ adds its own when it beats the declared physics under cross-validation.
+   that no re-adjustment of the declared parameters can. The strongest terms make up the
+   hypotheses ([`evidence_hypotheses`][sk_offwhite.loop.evidence_hypotheses]); the fitted
+   sparse $\delta$ adds its own when it beats the declared physics under cross-validation.
+   With a pysindy dictionary, the functions a physicist tries first for each declared kind
+   (`with_kind_terms`: a velocity's sign and $v|v|$, a level's square root, the size of an
+   input that changes sign) are read too, on a fit of their own: a note names those that
+   explain more than the dictionary's best term.
 """
 
 from __future__ import annotations
 
 import warnings
-from dataclasses import replace
 
 import numpy as np
 
@@ -109,25 +109,56 @@ def output_names(physics, n_outputs: int) -> list[str]:
 
 
 def read_evidence(search: Search, physics, library):
-    """The physics-only fit with the evidence of the dictionary and of the kinds' functions
-    (`with_kind_terms`), and its hypotheses; a kind function is evidence only, never a term
-    to promote (its column is -1)."""
-    library, own = with_kind_terms(library, physics, search.u)
+    """The physics-only fit with the dictionary's evidence, and its hypotheses; a note on
+    the functions of the declared kinds (`kind_notes`) joins ``search.notes``."""
     evidence = search.attempt("evidence", evidence_fit, search, physics, library)
     if evidence is None:
         return None, []
     run = evidence.simulate(search.u)
     share = search.settings.min_share
-    hypotheses = evidence_hypotheses(evidence, run, search.u, min_share=share)
-    return evidence, [_kind_terms_unpromoted(h, own) for h in hypotheses]
+    search.notes.extend(kind_notes(search, physics, library))
+    return evidence, evidence_hypotheses(evidence, run, search.u, min_share=share)
 
 
-def _kind_terms_unpromoted(hypothesis, own: int | None):
-    """``hypothesis`` with the columns of its terms beyond the dictionary's own ``own`` at -1."""
+def kind_notes(search: Search, physics, library) -> list[str]:
+    """A line per equation on the functions of the variables' declared kinds
+    (`with_kind_terms`) that would explain more than the dictionary's best term there, each
+    in the equation where it explains most, with the share of the declared physics' cost
+    each removes alone; read on a fit of its own, so
+    that they inform the reader and leave the loop's hypotheses and candidates as the
+    dictionary makes them. None where the dictionary is no pysindy library, no variable has
+    such a kind, or the fit fails."""
+    combined, own = with_kind_terms(library, physics, search.u)
     if own is None:
-        return hypothesis
-    terms = tuple(t if t.column < own else replace(t, column=-1) for t in hypothesis.terms)
-    return replace(hypothesis, terms=terms)
+        return []
+    est = search.attempt("evidence of the kinds", evidence_fit, search, physics, combined)
+    if est is None:
+        return []
+    gains = np.nan_to_num(np.asarray(est.term_gain_, float))
+    # a kind function is named in the equation where it explains most
+    elsewhere = gains < np.max(gains, axis=0, keepdims=True)
+    gains[:, own:] = np.where(elsewhere[:, own:], 0.0, gains[:, own:])
+    names = est.physics_.state_names
+    lines = (
+        _kind_line(names[state], est.feature_names_, gains[row], own)
+        for row, state in enumerate(est.delta_states_)
+    )
+    return [line for line in lines if line]
+
+
+def _kind_line(equation: str, names, gains: np.ndarray, own: int) -> str:
+    """The note for one equation, or ``""`` when no kind function (columns from ``own``)
+    beats the dictionary's best term."""
+    best = int(np.argmax(gains[:own]))
+    better = [j for j in np.argsort(-gains[own:]) + own if gains[j] > gains[best]]
+    if not better:
+        return ""
+    found = ", ".join(f"{names[j]} {gains[j]:.0%}" for j in better)
+    return (
+        f"In the {equation} equation the functions of the variables' kinds explain more than "
+        f"the dictionary: {found} of the declared physics' cost, each alone (the "
+        f"dictionary's best, {names[best]}: {gains[best]:.0%})."
+    )
 
 
 def evidence_fit(search: Search, physics, library) -> GreyBoxSparseRegressor:

@@ -1,8 +1,8 @@
-r"""Evidence a physicist would look for first, by the declared kind of each variable.
+r"""What a physicist would look for first, by the declared kind of each variable.
 
-The loop's evidence (the projected gain of every dictionary term at the declared fit)
-is read on the user's dictionary and, for a pysindy dictionary, on the functions a
-physicist tries first for each declared kind:
+Besides the evidence of the user's dictionary (the projected gain of every term at the
+declared fit), the loop reads, for a pysindy dictionary and on a fit of its own, the
+functions a physicist tries first for each declared kind:
 
 | kind | functions |
 |---|---|
@@ -10,11 +10,13 @@ physicist tries first for each declared kind:
 | level | $\sqrt{\lvert h\rvert}$ (an outflow through an orifice) |
 | an input that changes sign | $\lvert u\rvert$ (a loss in the size of an effort) |
 
-so that a friction shows up as a sign of the velocity and not as the polynomial that
-resembles it. Each function is unit-free: rescaling its variable rescales its column,
-which the gains do not see. The added terms are evidence only: they name what an
-equation lacks in the hypotheses, and are never promoted into the physics as terms
-themselves (the effects they point at are).
+and notes those that explain more than the dictionary's best term: a friction then shows
+up as an odd function of the velocity rather than as the sign-blind $v^2$ of a polynomial
+dictionary (the first-order gains seldom tell the sign from $v\lvert v\rvert$: both name
+the velocity). Each function is unit-free: rescaling its variable rescales its column,
+which the gains do not see. The functions inform the reader only: the hypotheses, the
+candidates and the promoted terms stay the dictionary's, whose choices the functions'
+columns would otherwise shift.
 """
 
 from __future__ import annotations
