@@ -90,7 +90,7 @@ def test_a_missing_friction_shows_up_as_an_odd_function_of_the_velocity_not_as_v
     friction (``v^2``, ``q tau``); the velocity's kind adds the odd shapes, which explain
     more, in a note. The hypotheses and the promoted terms are the dictionary's alone."""
     u, z = friction_record()
-    search = Search(u, z, LoopSettings(n_jobs=1))
+    search = Search(u, z, LoopSettings(n_jobs=1, kind_notes=True))
     library = ps.PolynomialLibrary(degree=2)
     _, hypotheses = read_evidence(search, drive(), library)
     (note,) = search.notes
@@ -103,9 +103,16 @@ def test_a_missing_friction_shows_up_as_an_odd_function_of_the_velocity_not_as_v
     assert promoted and all(isinstance(c.effect.column, int) for c in promoted)
 
 
-def test_no_note_where_no_kind_function_beats_the_dictionary():
+def test_no_note_without_the_setting():
     u, z = friction_record()
     search = Search(u, z, LoopSettings(n_jobs=1))
+    read_evidence(search, drive(), ps.PolynomialLibrary(degree=2))
+    assert search.notes == []
+
+
+def test_no_note_where_no_kind_function_beats_the_dictionary():
+    u, z = friction_record()
+    search = Search(u, z, LoopSettings(n_jobs=1, kind_notes=True))
     with_sign = ps.GeneralizedLibrary(
         [ps.PolynomialLibrary(degree=1), ps.CustomLibrary([sign_of], [lambda x: f"s({x})"])],
         inputs_per_library=[[0, 1, 2], [1]],

@@ -12,9 +12,9 @@ The stages, each a module of this package:
 
 1. the declared physics fitted and cross-validated (`_evidence`);
 2. the evidence: what each dictionary term would explain that the declared parameters cannot
-   absorb (and, in a note, the functions a physicist tries first for the declared kinds: a
-   velocity's sign, a level's square root, `_kind_terms`), and the hypotheses of the fitted
-   sparse $\delta$ (`_evidence`, `_corrections`);
+   absorb (with ``kind_notes``, in a note, the functions a physicist tries first for the
+   declared kinds: a velocity's sign, a level's square root, `_kind_terms`), and the
+   hypotheses of the fitted sparse $\delta$ (`_evidence`, `_corrections`);
 3. the candidates, from the hypotheses, the measured range and the variables' kinds
    (`_proposals`, `_candidates`);
 4. the selection: single fits, forward selection, nested sets, cross-validated, then
@@ -231,7 +231,7 @@ class EffectSearchCV(MetaEstimatorMixin, RegressorMixin, BaseEstimator):
         the numbers are the same as with one.
     gammas, n_gammas, gamma_eps, cv_horizon, max_effects, min_gain, tolerance, \
 max_candidates, beam, fit_top, n_pairs, min_share, n_promoted, fit_delta, share_programs, \
-one_standard_error, release_programs, fit_output_delta, output_bumps
+one_standard_error, release_programs, fit_output_delta, output_bumps, kind_notes
         As [`LoopSettings`][sk_offwhite.loop.LoopSettings].
 
     Attributes
@@ -293,6 +293,7 @@ one_standard_error, release_programs, fit_output_delta, output_bumps
         release_programs: bool = True,
         fit_output_delta: bool = True,
         output_bumps: int = 7,
+        kind_notes: bool = False,
     ):
         self.estimator = estimator
         self.cv = cv
@@ -317,6 +318,7 @@ one_standard_error, release_programs, fit_output_delta, output_bumps
         self.release_programs = release_programs
         self.fit_output_delta = fit_output_delta
         self.output_bumps = output_bumps
+        self.kind_notes = kind_notes
 
     @classmethod
     def from_settings(cls, physics, library, settings: LoopSettings) -> EffectSearchCV:

@@ -8,10 +8,10 @@ r"""The first stages of the loop: the declared physics fitted, and what it canno
    that no re-adjustment of the declared parameters can. The strongest terms make up the
    hypotheses ([`evidence_hypotheses`][sk_offwhite.loop.evidence_hypotheses]); the fitted
    sparse $\delta$ adds its own when it beats the declared physics under cross-validation.
-   With a pysindy dictionary, the functions a physicist tries first for each declared kind
-   (`with_kind_terms`: a velocity's sign and $v|v|$, a level's square root, the size of an
-   input that changes sign) are read too, on a fit of their own: a note names those that
-   explain more than the dictionary's best term.
+   With ``kind_notes`` and a pysindy dictionary, the functions a physicist tries first for
+   each declared kind (`with_kind_terms`: a velocity's sign and $v|v|$, a level's square
+   root, the size of an input that changes sign) are read too, on a fit of their own: a
+   note names those that explain more than the dictionary's best term.
 """
 
 from __future__ import annotations
@@ -109,14 +109,16 @@ def output_names(physics, n_outputs: int) -> list[str]:
 
 
 def read_evidence(search: Search, physics, library):
-    """The physics-only fit with the dictionary's evidence, and its hypotheses; a note on
-    the functions of the declared kinds (`kind_notes`) joins ``search.notes``."""
+    """The physics-only fit with the dictionary's evidence, and its hypotheses; with the
+    setting ``kind_notes``, a note on the functions of the declared kinds (`kind_notes`)
+    joins ``search.notes``."""
     evidence = search.attempt("evidence", evidence_fit, search, physics, library)
     if evidence is None:
         return None, []
     run = evidence.simulate(search.u)
     share = search.settings.min_share
-    search.notes.extend(kind_notes(search, physics, library))
+    if search.settings.kind_notes:
+        search.notes.extend(kind_notes(search, physics, library))
     return evidence, evidence_hypotheses(evidence, run, search.u, min_share=share)
 
 

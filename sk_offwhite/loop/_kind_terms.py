@@ -1,8 +1,9 @@
 r"""What a physicist would look for first, by the declared kind of each variable.
 
 Besides the evidence of the user's dictionary (the projected gain of every term at the
-declared fit), the loop reads, for a pysindy dictionary and on a fit of its own, the
-functions a physicist tries first for each declared kind:
+declared fit), the loop reads with ``LoopSettings(kind_notes=True)``, for a pysindy
+dictionary and on a fit of its own, the functions a physicist tries first for each
+declared kind:
 
 | kind | functions |
 |---|---|

@@ -58,6 +58,7 @@ CONSTRAINTS: dict[str, list] = {
     "release_programs": ["boolean"],
     "fit_output_delta": ["boolean"],
     "output_bumps": _count(2),
+    "kind_notes": ["boolean"],
 }
 """What each field of [`LoopSettings`][sk_offwhite.loop.LoopSettings] may hold (scikit-learn's
 parameter constraints)."""
@@ -142,6 +143,12 @@ class LoopSettings:
         output map, where the outputs read states (a sensor's static nonlinearity).
     output_bumps : int, default=7
         Gaussian bumps of each measured state in that correction's dictionary.
+    kind_notes : bool, default=False
+        Also read, on an evidence fit of its own, the functions a physicist tries first for
+        each declared kind (a velocity's sign and $v|v|$, a level's square root, the size of
+        an input that changes sign), and note those that explain more than the dictionary's
+        best term. They inform the reader and change no choice; the extra fit compiles a
+        program of its own (a few seconds).
     """
 
     gammas: tuple[float, ...] | None = None
@@ -172,6 +179,7 @@ class LoopSettings:
     release_programs: bool = True
     fit_output_delta: bool = True
     output_bumps: int = 7
+    kind_notes: bool = False
 
     def __post_init__(self):
         values = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
