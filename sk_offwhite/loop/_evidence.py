@@ -126,10 +126,9 @@ def kind_notes(search: Search, physics, library) -> list[str]:
     """A line per equation on the functions of the variables' declared kinds
     (`with_kind_terms`) that would explain more than the dictionary's best term there, each
     in the equation where it explains most, with the share of the declared physics' cost
-    each removes alone; read on a fit of its own, so
-    that they inform the reader and leave the loop's hypotheses and candidates as the
-    dictionary makes them. None where the dictionary is no pysindy library, no variable has
-    such a kind, or the fit fails."""
+    each removes alone. Read on a fit of its own, so that they inform the reader and leave
+    the loop's hypotheses and candidates as the dictionary makes them. None where the
+    dictionary is no pysindy library, no variable has such a kind, or the fit fails."""
     combined, own = with_kind_terms(library, physics, search.u)
     if own is None:
         return []
