@@ -12,20 +12,15 @@ from dataclasses import dataclass
 from numbers import Real
 
 import jax
-import jax.numpy as jnp
 import numpy as np
 from sklearn.utils import Bunch, check_random_state
 
+from sk_offwhite.dictionaries._compiled import _xp
 from sk_offwhite.model._physics import PhysicsModel
 
 # --------------------------------------------------------------------------------------
 # Array helpers usable from numpy (pysindy) and jax.numpy (the package's feature maps)
 # --------------------------------------------------------------------------------------
-
-
-def _xp(a):
-    """``jax.numpy`` for JAX arrays and tracers, ``numpy`` otherwise."""
-    return jnp if isinstance(a, jax.Array) else np
 
 
 def _tanh(a):

@@ -19,6 +19,13 @@ import numpy as np
 __all__ = ["CompiledBasis", "evaluate_matrix"]
 
 
+def _xp(a):
+    """``jax.numpy`` for JAX arrays and tracers, ``numpy`` otherwise: a feature function
+    written with it runs in float64 numpy inside pysindy and in ``jax.numpy`` (also under
+    ``jit``/``grad``) inside the compiled dictionary."""
+    return jnp if isinstance(a, jax.Array) else np
+
+
 #: A compiled feature row: ``phi(v) -> (m,)`` for ``v`` of shape ``(n,)``.
 FeatureFn = Callable[[jnp.ndarray], jnp.ndarray]
 

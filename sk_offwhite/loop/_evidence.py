@@ -118,19 +118,21 @@ def read_evidence(search: Search, physics, library):
     run = evidence.simulate(search.u)
     share = search.settings.min_share
     if search.settings.kind_notes:
-        search.notes.extend(kind_notes(search, physics, library))
+        own = len(evidence.feature_names_)
+        search.notes.extend(kind_notes(search, physics, library, own))
     return evidence, evidence_hypotheses(evidence, run, search.u, min_share=share)
 
 
-def kind_notes(search: Search, physics, library) -> list[str]:
+def kind_notes(search: Search, physics, library, own: int) -> list[str]:
     """A line per equation on the functions of the variables' declared kinds
     (`with_kind_terms`) that would explain more than the dictionary's best term there, each
     in the equation where it explains most, with the share of the declared physics' cost
-    each removes alone. Read on a fit of its own, so that they inform the reader and leave
+    each removes alone (``own``: the dictionary's number of columns, which come first).
+    Read on a fit of its own, so that they inform the reader and leave
     the loop's hypotheses and candidates as the dictionary makes them. None where the
     dictionary is no pysindy library, no variable has such a kind, or the fit fails."""
-    combined, own = with_kind_terms(library, physics, search.u)
-    if own is None:
+    combined = with_kind_terms(library, physics, search.u)
+    if combined is None:
         return []
     est = search.attempt("evidence of the kinds", evidence_fit, search, physics, combined)
     if est is None:

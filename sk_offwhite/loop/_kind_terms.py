@@ -24,18 +24,13 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import jax.numpy as jnp
 import numpy as np
 
+from ..dictionaries._compiled import _xp
 from ..effects._hidden import n_declared_states
 from ..model._kinds import LEVEL_KINDS, VELOCITY_KINDS, physical_kinds
 
 __all__ = ["with_kind_terms"]
-
-
-def _xp(x):
-    """``numpy`` for numpy arrays (pysindy's evaluation), ``jax.numpy`` otherwise."""
-    return np if isinstance(x, np.ndarray) else jnp
 
 
 def sign_of(x):
@@ -93,30 +88,20 @@ def kind_groups(physics, u: np.ndarray) -> list[tuple[tuple, tuple, list[int]]]:
     return [group for group in groups if group[2]]
 
 
-def with_kind_terms(library, physics, u) -> tuple[object, int | None]:
+def with_kind_terms(library, physics, u):
     """The evidence dictionary: ``library`` with the kind functions of ``physics``'
-    variables appended (`kind_groups`), and the number of columns of ``library`` itself
-    (which come first); ``(library, None)`` where it is no pysindy library, or where no
-    variable has a kind with functions."""
+    variables appended after its own columns (`kind_groups`); ``None`` where ``library`` is
+    no pysindy library, or where no variable has a kind with functions."""
     import pysindy as ps
 
     if not isinstance(library, ps.feature_library.base.BaseFeatureLibrary):
-        return library, None
+        return None
     groups = kind_groups(physics, u)
     if not groups:
-        return library, None
+        return None
     n_variables = n_declared_states(physics) + physics.n_inputs
     libraries = [library] + [
         ps.CustomLibrary(list(functions), list(names)) for functions, names, _ in groups
     ]
     inputs: Sequence[list[int]] = [list(range(n_variables))] + [c for *_, c in groups]
-    combined = ps.GeneralizedLibrary(libraries, inputs_per_library=inputs)
-    return combined, _n_columns(library, physics)
-
-
-def _n_columns(library, physics) -> int:
-    """The number of columns ``library`` has on ``physics``' variables."""
-    from ..dictionaries import compile_basis
-
-    names = tuple(physics.state_names[: n_declared_states(physics)]) + tuple(physics.input_names)
-    return len(compile_basis(library, names, 1).names)
+    return ps.GeneralizedLibrary(libraries, inputs_per_library=inputs)
