@@ -192,3 +192,36 @@ def solver_problem(physics, records, horizon, with_library: bool, omega_start: f
         layout, blocks, free, bound_blocks(physics, blocks, records, segments), segments, weights
     )
     return problem, free0, model, layout
+
+
+def driven_mass_rhs(x, u, theta):
+    """A mass driven by a force against a viscous friction: q' = v, M v' = tau - Fv v."""
+    return jnp.stack([x[1], (u[0] - theta["Fv"] * x[1]) / theta["M"]])
+
+
+def driven_mass(M=1.0, Fv=1.0, **options) -> PhysicsModel:
+    """`driven_mass_rhs` at 100 Hz: states ``(q, v)`` of kinds position and velocity, the
+    input ``tau`` a force; ``options`` go to `PhysicsModel.from_ode` (``x0``, kinds)."""
+    settings = dict(state_names=("q", "v"), input_names=("tau",),
+                    state_kinds=("position", "velocity"), input_kinds=("force",))  # fmt: skip
+    parameters = {"M": Parameter(M, (0.01, None)), "Fv": Fv}
+    return PhysicsModel.from_ode(
+        driven_mass_rhs, 0.01, output=0, parameters=parameters, n_states=2, n_inputs=1,
+        **{**settings, **options},
+    )  # fmt: skip
+
+
+def driven_record(truth: PhysicsModel, n: int, seed: int, x0=(0.0, 0.0)):
+    """``truth`` driven from ``x0`` by a band-limited force, its output measured with noise
+    of a thousandth of its spread: ``(force, z)``."""
+    from sk_offwhite.fitting._problem import build_model
+    from sk_offwhite.simulation._rollout import simulate
+
+    rng = np.random.default_rng(seed)
+    force = np.convolve(rng.normal(0, 6.0, n + 50), np.ones(25) / 5, "same")[:n, None]
+    with jax.enable_x64(True):
+        params = {"theta": jnp.asarray(truth.parameter_values())}
+        model = build_model(truth, None, ())
+        _, z, _ = simulate(model, params, jnp.asarray(x0), jnp.asarray(force))
+    z = np.asarray(z)
+    return force, z + rng.normal(0, 1e-3 * np.std(z), z.shape)

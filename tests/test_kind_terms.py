@@ -7,31 +7,21 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pysindy as ps
+from conftest import driven_mass, driven_record
 
-from sk_offwhite import Friction, Parameter, PhysicsModel, RidgeBasis, augment
+from sk_offwhite import Friction, PhysicsModel, RidgeBasis, augment
 from sk_offwhite.dictionaries import compile_basis
-from sk_offwhite.fitting._problem import build_model
 from sk_offwhite.loop import LoopSettings
 from sk_offwhite.loop._candidates import promoted_terms
 from sk_offwhite.loop._evidence import read_evidence
 from sk_offwhite.loop._kind_terms import kind_groups, sign_of, with_kind_terms
 from sk_offwhite.loop._search import Search
-from sk_offwhite.simulation._rollout import simulate
 
 DT = 0.01
 
 
-def drive_rhs(x, u, theta):
-    return jnp.stack([x[1], (u[0] - theta["Fv"] * x[1]) / theta["M"]])
-
-
 def drive(state_kinds=("position", "velocity")) -> PhysicsModel:
-    parameters = {"M": Parameter(2.0, (0.01, None)), "Fv": 4.0}
-    return PhysicsModel.from_ode(
-        drive_rhs, DT, output=0, parameters=parameters, n_states=2, n_inputs=1,
-        state_names=("q", "v"), input_names=("tau",), state_kinds=state_kinds,
-        input_kinds=("force",),
-    )  # fmt: skip
+    return driven_mass(2.0, 4.0, state_kinds=state_kinds)
 
 
 def test_each_kind_gets_its_functions_and_a_one_signed_input_none():
@@ -76,15 +66,8 @@ def test_the_functions_are_the_same_in_numpy_and_in_jax():
 
 def friction_record(n: int = 600, seed: int = 0):
     """The drive with a Coulomb friction the declared physics lacks."""
-    rng = np.random.default_rng(seed)
-    force = np.convolve(rng.normal(0, 6.0, n + 50), np.ones(25) / 5, "same")[:n, None]
     friction = Friction(1, coulomb=1.0, width=1e-3, fit_width=False, name="friction")
-    truth = augment(drive(), friction)
-    with jax.enable_x64(True):
-        params = {"theta": jnp.asarray(truth.parameter_values())}
-        _, z, _ = simulate(build_model(truth, None, ()), params, jnp.zeros(2), jnp.asarray(force))
-    z = np.asarray(z)
-    return force, z + rng.normal(0, 1e-3 * np.std(z), z.shape)
+    return driven_record(augment(drive(), friction), n, seed)
 
 
 def test_a_missing_friction_shows_up_as_an_odd_function_of_the_velocity_not_as_v2():

@@ -6,17 +6,15 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import driven_mass, driven_record
 
 from sk_offwhite import (
     Friction,
     GreyBoxSparseRegressor,
-    Parameter,
     PhysicsModel,
     PositionForce,
     augment,
 )
-from sk_offwhite.fitting._problem import build_model
-from sk_offwhite.simulation._rollout import simulate
 
 DT = 0.01
 CENTER, SPREAD = 0.5, 0.2
@@ -75,17 +73,8 @@ def test_bad_settings_are_refused():
         Friction(1, position=0, reference=-1.0)
 
 
-def carriage_rhs(x, u, theta):
-    return jnp.stack([x[1], (u[0] - theta["Fv"] * x[1]) / theta["M"]])
-
-
 def carriage(**values) -> PhysicsModel:
-    parameters = {"M": Parameter(values.get("M", 1.0), (0.01, None)), "Fv": values.get("Fv", 1.0)}
-    return PhysicsModel.from_ode(
-        carriage_rhs, DT, output=0, parameters=parameters, n_states=2, n_inputs=1,
-        state_names=("q", "v"), input_names=("tau",), state_kinds=("position", "velocity"),
-        input_kinds=("force",), x0=(CENTER, 0.0),
-    )  # fmt: skip
+    return driven_mass(values.get("M", 1.0), values.get("Fv", 1.0), x0=(CENTER, 0.0))
 
 
 def effects():
@@ -107,15 +96,8 @@ def per_mass(values: dict) -> dict:
 def carriage_record(n: int, seed: int):
     """The carriage driven by a band-limited force about the centre of its stroke, its
     position measured with noise."""
-    rng = np.random.default_rng(seed)
-    force = np.convolve(rng.normal(0, 6.0, n + 50), np.ones(25) / 5, "same")[:n, None]
     truth = augment(carriage(**TRUTH), *effects()).with_parameters(**per_mass(TRUTH))
-    with jax.enable_x64(True):
-        params = {"theta": jnp.asarray(truth.parameter_values())}
-        model = build_model(truth, None, ())
-        _, z, _ = simulate(model, params, jnp.array([CENTER, 0.0]), jnp.asarray(force))
-    z = np.asarray(z)
-    return force, z + rng.normal(0, 1e-3 * np.std(z), z.shape)
+    return driven_record(truth, n, seed, x0=(CENTER, 0.0))
 
 
 def test_the_fit_recovers_the_varying_friction_and_the_position_force():

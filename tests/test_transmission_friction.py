@@ -6,20 +6,18 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from conftest import driven_mass, driven_record
 
 from sk_offwhite import (
     Friction,
     GreyBoxSparseRegressor,
-    Parameter,
     PhysicsModel,
     TransmissionFriction,
     augment,
 )
-from sk_offwhite.fitting._problem import build_model
 from sk_offwhite.loop._candidates import propose_effects
 from sk_offwhite.loop._hypotheses import Hypothesis
 from sk_offwhite.model._kinds import Kinds
-from sk_offwhite.simulation._rollout import simulate
 
 DT = 0.01
 TRUTH = {"M": 2.0, "Fv": 4.0, "friction_coulomb": 1.5, "load_share": 0.2}
@@ -54,17 +52,8 @@ def test_bad_settings_are_refused():
         TransmissionFriction(0, 1, width=0.0)
 
 
-def drive_rhs(x, u, theta):
-    return jnp.stack([x[1], (u[0] - theta["Fv"] * x[1]) / theta["M"]])
-
-
 def drive(**values) -> PhysicsModel:
-    parameters = {"M": Parameter(values.get("M", 1.0), (0.01, None)), "Fv": values.get("Fv", 1.0)}
-    return PhysicsModel.from_ode(
-        drive_rhs, DT, output=0, parameters=parameters, n_states=2, n_inputs=1,
-        state_names=("q", "v"), input_names=("tau",), state_kinds=("position", "velocity"),
-        input_kinds=("force",),
-    )  # fmt: skip
+    return driven_mass(values.get("M", 1.0), values.get("Fv", 1.0))
 
 
 def effects():
@@ -75,17 +64,10 @@ def effects():
 def screw_record(n: int, seed: int):
     """The drive with a Coulomb friction and a load friction, driven by a band-limited
     force, its position measured with noise."""
-    rng = np.random.default_rng(seed)
-    force = np.convolve(rng.normal(0, 6.0, n + 50), np.ones(25) / 5, "same")[:n, None]
     truth = augment(drive(**TRUTH), *effects()).with_parameters(
         friction_coulomb=TRUTH["friction_coulomb"] / TRUTH["M"], load_share=TRUTH["load_share"]
     )
-    with jax.enable_x64(True):
-        params = {"theta": jnp.asarray(truth.parameter_values())}
-        model = build_model(truth, None, ())
-        _, z, _ = simulate(model, params, jnp.zeros(2), jnp.asarray(force))
-    z = np.asarray(z)
-    return force, z + rng.normal(0, 1e-3 * np.std(z), z.shape)
+    return driven_record(truth, n, seed)
 
 
 def test_the_fit_recovers_the_share_and_the_declared_parameters():
