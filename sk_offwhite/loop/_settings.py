@@ -148,7 +148,7 @@ class LoopSettings:
         each declared kind (a velocity's sign and $v|v|$, a level's square root, the size of
         an input that changes sign), and note those that explain more than the dictionary's
         best term. They inform the reader and change no choice; the extra fit compiles a
-        program of its own (a few seconds).
+        program of its own.
     """
 
     gammas: tuple[float, ...] | None = None
