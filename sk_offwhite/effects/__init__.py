@@ -27,6 +27,7 @@ from ._lags import FirstOrderLag, InputDelay, InputLag, SensorLag
 from ._laws import DictionaryTerm, RelaxedLaw
 from ._limits import DeadZone, DifferenceDeadZone, InputSaturation, OutputSaturation, Overflow
 from ._mechanics import (
+    DirectionalDamping,
     Friction,
     PositionForce,
     PowerDrag,
@@ -48,6 +49,7 @@ __all__ = [
     "DeadZone",
     "DictionaryTerm",
     "DifferenceDeadZone",
+    "DirectionalDamping",
     "Effect",
     "FirstOrderLag",
     "FollowsOutput",

@@ -11,6 +11,7 @@ from ._base import AdditiveEffect
 from ._terms import _check_exponent, _check_reference, signed_power
 
 __all__ = [
+    "DirectionalDamping",
     "Friction",
     "PositionForce",
     "PowerDrag",
@@ -333,6 +334,58 @@ class QuadraticDrag(AdditiveEffect):
 
     def describe(self, state_names, output_names, values=None) -> str:
         return f"{state_names[self.state]} is braked by a drag in its square"
+
+
+class DirectionalDamping(AdditiveEffect):
+    r"""A viscous friction that differs with the direction of motion: $g = -c\,|v|$.
+
+    $$
+    g = -c\, v \tanh(v / w), \qquad v = x_s,
+    $$
+
+    so that with a declared viscous friction $b\,v$ the damping is $b + c$ while $v > 0$
+    and $b - c$ while $v < 0$, as a screw's, a seal's or a guide's often is. Parameter
+    ``{name}_difference`` ($c$, either sign, from ``difference``); the smooth $|v|$ has the
+    fixed width ``width`` ($w > 0$, in the velocity's units: the loop takes 1 % of the
+    velocity's RMS, as for a friction's sign). Both directions stay dissipative while
+    $|c| < b$. On a drive it is what a constant force offset fitted with a symmetric
+    viscous friction often stands for: the offset pushes one way at every speed, while
+    this term grows with the speed in one direction and shrinks in the other.
+    """
+
+    def __init__(
+        self,
+        state: int,
+        *,
+        difference: float = 0.0,
+        width: float = 0.05,
+        velocity: int | None = None,
+        name: str = "directional_damping",
+    ):
+        if not width > 0:
+            raise ValueError(f"width must be positive, got {width!r}.")
+        self.state, self.difference, self.width = int(state), float(difference), float(width)
+        self.velocity = self.state if velocity is None else int(velocity)
+        self.name = name
+
+    def parameters(self) -> dict[str, Parameter]:
+        return {f"{self.name}_difference": Parameter(self.difference)}
+
+    def term(self, x, u, theta):
+        v = x[self.velocity]
+        return -theta[f"{self.name}_difference"] * v * jnp.tanh(v / self.width)
+
+    def basis(self, x, u):
+        v = x[:, self.velocity]
+        return -v * np.tanh(v / self.width)
+
+    def describe(self, state_names, output_names, values=None) -> str:
+        difference = float((values or {}).get(f"{self.name}_difference", 0.0))
+        v = state_names[self.velocity]
+        if difference == 0.0:
+            return f"the damping of {v} depends on its direction"
+        faster = "positive" if difference > 0 else "negative"
+        return f"{v} is damped more while it is {faster} (a damping that depends on the direction)"
 
 
 class PowerDrag(QuadraticDrag):

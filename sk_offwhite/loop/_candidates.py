@@ -6,8 +6,9 @@ only where they make physical sense for the variables' kinds
 (`physical_kinds`):
 
 * levels (and one-signed generic states): overflows, leaks, caps;
-* velocities and rates: Coulomb friction, quadratic drag (velocities), a polynomial
-  stiffness in the kinematic partner (the position), a constant (a force offset);
+* velocities and rates: Coulomb friction, quadratic drag and a damping that depends on the
+  direction of motion (velocities), a polynomial stiffness in the kinematic partner (the
+  position), a constant (a force offset);
 * any equation: a constant ([`Bias`][sk_offwhite.Bias]), a leak for generic states and
   temperatures; temperatures: a loss of fitted power ([`PowerLoss`][sk_offwhite.PowerLoss]);
 * inputs in the hypothesis that are efforts or flows: a saturating actuator and a dead zone;
@@ -52,6 +53,7 @@ from ..effects import (
     DeadZone,
     DictionaryTerm,
     DifferenceDeadZone,
+    DirectionalDamping,
     Effect,
     Friction,
     InputDelay,
@@ -190,7 +192,8 @@ SIGN_WIDTH = 0.01
 
 
 def _mechanical(hypothesis, states, names, kinds: Kinds) -> list[Candidate]:
-    """Friction, drag and a stiffness in a velocity's (or rate's) equation."""
+    """Friction, drag, a directional damping and a stiffness in a velocity's (or rate's)
+    equation."""
     i, name = hypothesis.equation_index, hypothesis.equation
     kind = kinds.states[i]
     generic_velocity = (
@@ -205,6 +208,10 @@ def _mechanical(hypothesis, states, names, kinds: Kinds) -> list[Candidate]:
             f"{why} A Coulomb friction.",
         ),
         Candidate(QuadraticDrag(i, reference=rms, name=f"drag_{name}"), f"{why} A quadratic drag."),
+        Candidate(
+            DirectionalDamping(i, width=SIGN_WIDTH * rms, name=f"directional_damping_{name}"),
+            f"{why} A damping that depends on the direction of motion.",
+        ),
     ]
     position = kinds.partner.get(i)
     if position is not None:
