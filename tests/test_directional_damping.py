@@ -12,6 +12,7 @@ from conftest import driven_mass, driven_record
 from sk_offwhite import DirectionalDamping, GreyBoxSparseRegressor, augment
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 from sk_offwhite.loop._candidates import propose_effects
+from sk_offwhite.loop._energy import direction_reasons, power_sentence
 from sk_offwhite.loop._hypotheses import Hypothesis
 from sk_offwhite.model._kinds import Kinds
 
@@ -113,3 +114,24 @@ def test_the_loop_cuts_the_validation_error_by_half(loop_run):
     }
     declared = rows[("declared physics", "init_window")]
     assert rows[("augmented physics", "init_window")] <= 0.5 * declared
+
+
+def test_the_report_gives_the_damping_of_each_direction():
+    physics = driven_mass(**TRUTH)  # b = Fv / M = 2 per second
+    effect = damping()
+    states = np.column_stack([np.zeros(4), np.array([-1.0, -0.5, 0.5, 1.0])])
+    theta = {**TRUTH, "dd_difference": 0.5}
+    sentence = power_sentence(effect, physics, theta, states, np.zeros((4, 1)))
+    assert sentence.startswith("dissipative both ways") and "2.5 moving forward" in sentence
+    assert "1.5 moving back" in sentence
+    assert direction_reasons(physics, [effect], theta) == []
+
+
+def test_a_direction_left_undamped_makes_the_set_a_stand_in():
+    physics = driven_mass(**TRUTH)
+    theta = {**TRUTH, "dd_difference": -3.0}  # forward 2 - 3 < 0: driven
+    (reason,) = direction_reasons(physics, [damping()], theta)
+    assert "undamped" in reason
+    states = np.column_stack([np.zeros(2), np.array([-1.0, 1.0])])
+    sentence = power_sentence(damping(), physics, theta, states, np.zeros((2, 1)))
+    assert sentence.startswith("not physical")

@@ -3,7 +3,9 @@ r"""Physical plausibility of an effect set: does it keep the declared physics, o
 An effect set that fits only by moving a declared parameter by orders of magnitude from
 the declared physics' fit (a resistance from 2 to 751), or across zero, is a stand-in: it
 lowers the error, but the physics it leaves is not the plant's; so is a set that holds a
-promoted dictionary term, which names no law (`dictionary_reasons`). The loop never
+promoted dictionary term, which names no law (`dictionary_reasons`), and a set whose
+directional damping leaves a direction of motion driven rather than damped
+(`sk_offwhite.loop._energy.direction_reasons`). The loop never
 chooses a stand-in over a physical set within ``tolerance`` of its CV error, and says which
 one is which (`stand_in_reasons`). A set whose effects do not each lower the
 cross-validated error by ``min_gain`` over the set without them is not adopted

@@ -11,8 +11,9 @@ in the order of their gain, are cross-validated, each from its own fit on the wh
 the smallest within ``tolerance`` of the best, among the sets each of whose effects lowers
 the CV error by ``min_gain``, is kept if it beats the declared physics by ``min_gain``, then
 refined stepwise (`sk_offwhite.loop._refinement`). A set that moves a declared parameter
-tenfold, flips its sign or holds a promoted dictionary term is a stand-in, kept only when
-no physical set comes within ``tolerance`` of it (`sk_offwhite.loop._plausibility`).
+tenfold, flips its sign, holds a promoted dictionary term or leaves a direction of motion
+undamped is a stand-in, kept only when no physical set comes within ``tolerance`` of it
+(`sk_offwhite.loop._plausibility`).
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ import numpy as np
 
 from ..effects import DictionaryTerm, VaryingParameter
 from ._cv import structure_cv
+from ._energy import direction_reasons
 from ._fits import label, member_start, own, quick_fit
 from ._plausibility import (
     chosen_index,
@@ -340,10 +342,15 @@ def physical_choice(search: Search, physics, trail, steps) -> int:
 
 def stand_in_steps(physics, steps) -> list[list[str]]:
     """Why each step's effect set is a stand-in (`stand_in_reasons` against the declared
-    fit's values in ``physics``, and `dictionary_reasons`); empty where it is physical."""
+    fit's values in ``physics``, `dictionary_reasons` and `direction_reasons`); empty where it
+    is physical."""
     declared = {name: p.value for name, p in physics.parameters.items()}
-    return [stand_in_reasons(declared, params) + dictionary_reasons(effects)
-            for effects, params, _ in steps]  # fmt: skip
+    return [
+        stand_in_reasons(declared, params)
+        + dictionary_reasons(effects)
+        + direction_reasons(physics, effects, params)
+        for effects, params, _ in steps
+    ]
 
 
 def with_richer(effects) -> list:
