@@ -1,6 +1,7 @@
 """DirectionalDamping, a viscous friction that differs with the direction of motion: the law,
-its units, where the loop proposes it, a fit on a drive of known parameters, and the loop
-naming it on such a drive."""
+its units, where the loop proposes it, the damping of each direction it leaves, a fit on a
+drive of known parameters, and the loop naming it on such a drive (a loop of about a minute
+and a half on two cores: with ``--run-slow`` only, as tests/test_loop_mechanical.py)."""
 
 import jax
 import jax.numpy as jnp
@@ -85,6 +86,7 @@ def test_the_fit_recovers_the_difference_and_the_declared_parameters():
 
 @pytest.fixture(scope="module")
 def loop_run():
+    """The loop from a wrong guess of the drive, allowed one effect, and a validation record."""
     u, z = directional_record(1000, 1)
     u_val, z_val = directional_record(600, 2)
     settings = LoopSettings(n_folds=2, max_iter=100, max_effects=1, fit_delta=False,
@@ -95,6 +97,7 @@ def loop_run():
     return result, {"validation": (u_val, z_val)}
 
 
+@pytest.mark.slow
 def test_the_loop_names_the_directional_damping_with_its_sign(loop_run):
     result, _ = loop_run
     added = [effect for effect in result.effects if isinstance(effect, DirectionalDamping)]
@@ -106,6 +109,7 @@ def test_the_loop_names_the_directional_damping_with_its_sign(loop_run):
     assert params["Fv"] == pytest.approx(TRUTH["Fv"], rel=0.05)
 
 
+@pytest.mark.slow
 def test_the_loop_cuts_the_validation_error_by_half(loop_run):
     result, records = loop_run
     rows = {
