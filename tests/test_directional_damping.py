@@ -10,9 +10,9 @@ import pysindy as ps
 import pytest
 from conftest import driven_mass, driven_record
 
-from sk_offwhite import DirectionalDamping, GreyBoxSparseRegressor, augment
+from sk_offwhite import DirectionalDamping, GreyBoxSparseRegressor, Parameter, PhysicsModel, augment
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
-from sk_offwhite.loop._candidates import propose_effects
+from sk_offwhite.loop._candidates import on_the_velocity, propose_effects
 from sk_offwhite.loop._energy import direction_reasons, power_sentence
 from sk_offwhite.loop._hypotheses import Hypothesis
 from sk_offwhite.model._kinds import Kinds
@@ -63,6 +63,22 @@ def test_the_loop_proposes_it_in_a_velocity_equation_only():
     assert not any(isinstance(c.effect, DirectionalDamping) for c in found)
 
 
+def test_a_drift_in_a_position_s_equation_is_sought_in_its_velocity_s_force():
+    """A |v| force drifts the position: the evidence can name the kinematic equation
+    q' = v instead of the force on v. The loop proposes the velocity's effects as well."""
+    states = np.column_stack([np.linspace(0, 1, 50), np.sin(np.arange(50.0))])
+    drift = Hypothesis("q", 0, (), 1, None, correction=np.ones(50))
+    kinds = Kinds(("position", "velocity"), ("force",), {1: 0})
+    moved = on_the_velocity(drift, ("q", "v"), kinds)
+    assert (moved.equation, moved.equation_index, moved.correction) == ("v", 1, None)
+    assert "kinematics" in moved.sentence
+    names = {c.effect.name for c in propose_effects([drift], [], ("q", "v"), ["q"], states,
+                                                    u=np.ones((50, 1)), kinds=kinds)}  # fmt: skip
+    assert {"bias_q", "directional_damping_v", "friction_v", "bias_v"} <= names
+    assert on_the_velocity(moved, ("q", "v"), kinds) is None  # a velocity stays where it is
+    assert on_the_velocity(drift, ("q", "v"), kinds._replace(partner={})) is None
+
+
 def damping():
     return DirectionalDamping(1, width=1e-3, name="dd")
 
@@ -84,34 +100,86 @@ def test_the_fit_recovers_the_difference_and_the_declared_parameters():
     assert fitted["dd_difference"] * fitted["M"] == pytest.approx(DIFFERENCE, rel=0.05)
 
 
-@pytest.fixture(scope="module")
-def loop_run():
-    """The loop from a wrong guess of the drive, allowed one effect, and a validation record."""
-    u, z = directional_record(1000, 1)
-    u_val, z_val = directional_record(600, 2)
+def oscillator_rhs(x, u, theta):
+    """A mass on a spring: q' = v, M v' = f - k q - c v."""
+    return jnp.stack([x[1], (u[0] - theta["k"] * x[0] - theta["c"] * x[1]) / theta["M"]])
+
+
+def pendulum_rhs(x, u, theta):
+    """A driven pendulum: theta' = omega, J omega' = torque - mgl sin(theta) - b omega."""
+    angle, rate = x[0], x[1]
+    return jnp.stack(
+        [rate, (u[0] - theta["mgl"] * jnp.sin(angle) - theta["b"] * rate) / theta["J"]]
+    )
+
+
+def second_order(rhs, names, kinds, **values) -> PhysicsModel:
+    """``rhs`` at 100 Hz, its first parameter (the inertia) positive."""
+    inertia, *others = values
+    parameters = {inertia: Parameter(values[inertia], (0.01, None))}
+    parameters.update({name: values[name] for name in others})
+    return PhysicsModel.from_ode(
+        rhs, 0.01, output=0, parameters=parameters, n_states=2, n_inputs=1,
+        state_names=names[:2], input_names=names[2:], state_kinds=kinds[:2],
+        input_kinds=kinds[2:],
+    )  # fmt: skip
+
+
+def oscillator(**values) -> PhysicsModel:
+    kinds = ("position", "velocity", "force")
+    return second_order(oscillator_rhs, ("q", "v", "f"), kinds, **values)
+
+
+def pendulum(**values) -> PhysicsModel:
+    kinds = ("angle", "rate", "torque")
+    return second_order(pendulum_rhs, ("theta", "omega", "torque"), kinds, **values)
+
+
+PLANTS = {
+    "drive": (driven_mass, TRUTH, {"M": 1.5, "Fv": 3.0}, DIFFERENCE),
+    "oscillator": (oscillator, {"M": 1.0, "k": 40.0, "c": 0.6}, {"M": 0.8, "k": 30.0, "c": 0.5},
+                   0.3),
+    "pendulum": (pendulum, {"J": 0.5, "mgl": 12.0, "b": 0.3}, {"J": 0.4, "mgl": 9.0, "b": 0.25},
+                 0.12),
+}  # fmt: skip
+"""Each plant's physics, its truth, the loop's starting guess and the true difference of
+damping (in the units of its torque or force per velocity). The pendulum's drift reads
+first as a term of its angle's equation, which the loop moves to its rate's."""
+
+
+@pytest.fixture(scope="module", params=sorted(PLANTS))
+def loop_run(request):
+    """The loop from a wrong guess of the plant, allowed one effect, and a validation record."""
+    make, truth, guess, difference = PLANTS[request.param]
+    inertia = next(iter(truth))
+    plant = augment(make(**truth), damping()).with_parameters(
+        dd_difference=difference / truth[inertia]
+    )
+    (u, z), validation = driven_record(plant, 1000, 1), driven_record(plant, 600, 2)
     settings = LoopSettings(n_folds=2, max_iter=100, max_effects=1, fit_delta=False,
                             init_window=5, n_jobs=1)  # fmt: skip
-    result = close_the_loop(
-        driven_mass(M=1.5, Fv=3.0), ps.PolynomialLibrary(degree=2), u, z, settings=settings
-    )
-    return result, {"validation": (u_val, z_val)}
+    result = close_the_loop(make(**guess), ps.PolynomialLibrary(degree=2), u, z, settings=settings)
+    return result, {"validation": validation}, truth, difference
 
 
 @pytest.mark.slow
 def test_the_loop_names_the_directional_damping_with_its_sign(loop_run):
-    result, _ = loop_run
+    result, _, truth, difference = loop_run
     added = [effect for effect in result.effects if isinstance(effect, DirectionalDamping)]
     assert len(added) == 1 and len(result.effects) == 1
     params = result.final.parameters_
-    difference = params[f"{added[0].name}_difference"] * params["M"]
-    assert difference == pytest.approx(DIFFERENCE, rel=0.05)
-    assert "damped more while it is positive" in added[0].describe(("q", "v"), ("q",), params)
-    assert params["Fv"] == pytest.approx(TRUTH["Fv"], rel=0.05)
+    inertia = next(iter(truth))
+    fitted = params[f"{added[0].name}_difference"] * params[inertia]
+    assert fitted == pytest.approx(difference, rel=0.05)
+    names = result.physics.state_names
+    assert "damped more while it is positive" in added[0].describe(names, ("z",), params)
+    for name, value in truth.items():
+        assert params[name] == pytest.approx(value, rel=0.05), name
 
 
 @pytest.mark.slow
 def test_the_loop_cuts_the_validation_error_by_half(loop_run):
-    result, records = loop_run
+    result, records, *_ = loop_run
     rows = {
         (row["model"], row["protocol"]): row["rmse"]
         for row in score_models(result, records, init_window=5)

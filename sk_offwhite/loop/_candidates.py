@@ -43,7 +43,7 @@ are identified by the effect's name, so a cause proposed twice is tried once.
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -539,6 +539,33 @@ def unique_by_name(candidates) -> list[Candidate]:
     return list(unique.values())
 
 
+def on_the_velocity(hypothesis: Hypothesis, names, kinds: Kinds) -> Hypothesis | None:
+    r"""A hypothesis on a position's equation, moved to the equation of its declared velocity:
+    $\dot q = v$ is kinematics, so what it seems to lack (a drift, a term in $v$) is a force
+    the velocity's equation lacks, integrated once. The moved hypothesis has no correction
+    of its own to start the effects from. ``None`` where the state has no velocity."""
+    i = hypothesis.equation_index
+    velocity = next((j for j, position in kinds.partner.items() if position == i), None)
+    if velocity is None:
+        return None
+    why = (
+        f"{hypothesis.sentence} {names[i]}'s equation is kinematics: the force on "
+        f"{names[velocity]} may lack it instead."
+    )
+    return replace(hypothesis, equation=names[velocity], equation_index=velocity,
+                   correction=None, sentence=why)  # fmt: skip
+
+
+def with_kinematics_moved(hypotheses, names, kinds: Kinds) -> list[Hypothesis]:
+    """``hypotheses``, each one on a position's equation followed by its move to the
+    velocity's (`on_the_velocity`)."""
+    out = []
+    for hypothesis in hypotheses:
+        moved = on_the_velocity(hypothesis, names, kinds)
+        out += [hypothesis] if moved is None else [hypothesis, moved]
+    return out
+
+
 def propose_effects(
     hypotheses,
     range_facts,
@@ -599,7 +626,7 @@ def propose_effects(
     if kinds is None:
         kinds = Kinds(("generic",) * len(names), ("generic",) * len(input_names), {})
     proposals = []
-    for hypothesis in hypotheses:
+    for hypothesis in with_kinematics_moved(hypotheses, names, kinds):
         found = _level_effects(hypothesis, states, names, kinds)
         found += _mechanical(hypothesis, states, names, kinds)
         found += _constants(hypothesis, states, kinds)
