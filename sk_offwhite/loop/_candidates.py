@@ -8,7 +8,8 @@ only where they make physical sense for the variables' kinds
 * levels (and one-signed generic states): overflows, leaks, caps;
 * velocities and rates: Coulomb friction, quadratic drag and a damping that depends on the
   direction of motion (velocities), a polynomial stiffness in the kinematic partner (the
-  position), a constant (a force offset);
+  position), a constant (a force offset); a hypothesis on a position's equation brings
+  these to its velocity's too (`on_the_velocity`: the position's equation is kinematics);
 * any equation: a constant ([`Bias`][sk_offwhite.Bias]), a leak for generic states and
   temperatures; temperatures: a loss of fitted power ([`PowerLoss`][sk_offwhite.PowerLoss]);
 * inputs in the hypothesis that are efforts or flows: a saturating actuator and a dead zone;
