@@ -1,7 +1,7 @@
 """DirectionalDamping, a viscous friction that differs with the direction of motion: the law,
 its units, where the loop proposes it, the damping of each direction it leaves, a fit on a
-drive of known parameters, and the loop naming it on such a drive (a loop of about a minute
-and a half on two cores: with ``--run-slow`` only, as tests/test_loop_mechanical.py)."""
+drive of known parameters, and the loop naming it on a drive, an oscillator and a pendulum
+(a loop of a minute or two each: with ``--run-slow`` only, as tests/test_loop_mechanical.py)."""
 
 import jax
 import jax.numpy as jnp
@@ -13,8 +13,9 @@ from conftest import driven_mass, driven_record
 from sk_offwhite import DirectionalDamping, GreyBoxSparseRegressor, Parameter, PhysicsModel, augment
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 from sk_offwhite.loop._candidates import on_the_velocity, propose_effects
-from sk_offwhite.loop._energy import direction_reasons, power_sentence
+from sk_offwhite.loop._energy import power_sentence
 from sk_offwhite.loop._hypotheses import Hypothesis
+from sk_offwhite.loop._plausibility import direction_reasons
 from sk_offwhite.model._kinds import Kinds
 
 TRUTH = {"M": 2.0, "Fv": 4.0}
@@ -83,12 +84,18 @@ def damping():
     return DirectionalDamping(1, width=1e-3, name="dd")
 
 
+def damped(make, truth: dict, difference: float):
+    """The plant ``make(**truth)`` with `damping` of ``difference`` (per unit of its first,
+    inertial, parameter)."""
+    inertia = next(iter(truth))
+    plant = augment(make(**truth), damping())
+    return plant.with_parameters(dd_difference=difference / truth[inertia])
+
+
 def directional_record(n: int, seed: int):
     """The drive damped more forward than back, driven by a band-limited force, its position
     measured with noise."""
-    truth = augment(driven_mass(**TRUTH), damping())
-    truth = truth.with_parameters(dd_difference=DIFFERENCE / TRUTH["M"])
-    return driven_record(truth, n, seed)
+    return driven_record(damped(driven_mass, TRUTH, DIFFERENCE), n, seed)
 
 
 def test_the_fit_recovers_the_difference_and_the_declared_parameters():
@@ -151,10 +158,7 @@ first as a term of its angle's equation, which the loop moves to its rate's."""
 def loop_run(request):
     """The loop from a wrong guess of the plant, allowed one effect, and a validation record."""
     make, truth, guess, difference = PLANTS[request.param]
-    inertia = next(iter(truth))
-    plant = augment(make(**truth), damping()).with_parameters(
-        dd_difference=difference / truth[inertia]
-    )
+    plant = damped(make, truth, difference)
     (u, z), validation = driven_record(plant, 1000, 1), driven_record(plant, 600, 2)
     settings = LoopSettings(n_folds=2, max_iter=100, max_effects=1, fit_delta=False,
                             init_window=5, n_jobs=1)  # fmt: skip

@@ -384,8 +384,10 @@ class DirectionalDamping(AdditiveEffect):
         v = state_names[self.velocity]
         if difference == 0.0:
             return f"the damping of {v} depends on its direction"
-        faster = "positive" if difference > 0 else "negative"
-        return f"{v} is damped more while it is {faster} (a damping that depends on the direction)"
+        direction = "positive" if difference > 0 else "negative"
+        return (
+            f"{v} is damped more while it is {direction} (a damping that depends on the direction)"
+        )
 
 
 class PowerDrag(QuadraticDrag):

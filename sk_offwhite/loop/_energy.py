@@ -17,8 +17,9 @@ A [`DirectionalDamping`][sk_offwhite.DirectionalDamping] $-c\,\lvert v\rvert$ do
 work on a motion that goes both ways; what makes it physical is that it leaves both
 directions damped: with the declared physics' damping $b = -\partial f_v / \partial v$ (its
 mean over the states, for a physics declared by its right-hand side), the damping is
-$b + c$ moving forward and $b - c$ moving back, and a set in which one of them is negative
-makes that direction an energy source: a stand-in (`direction_reasons`).
+$b + c$ moving forward and $b - c$ moving back (`directional_dampings`), and a set in which
+one of them is negative makes that direction an energy source: a stand-in
+(`sk_offwhite.loop._plausibility.direction_reasons`).
 """
 
 from __future__ import annotations
@@ -33,7 +34,7 @@ from ..model._kinds import VELOCITY_KINDS
 __all__ = [
     "CONSERVATIVE_SHARE",
     "declared_damping",
-    "direction_reasons",
+    "directional_dampings",
     "net_power_share",
     "power_sentence",
 ]
@@ -59,23 +60,18 @@ def _term_values(effect: AdditiveEffect, theta: dict, states, u) -> np.ndarray:
     return np.asarray(term, float)
 
 
-def _number(value) -> float:
-    """A parameter's value, given as a number or a `Parameter`."""
-    return float(getattr(value, "value", value))
-
-
 def declared_damping(physics, theta: dict, i: int, states=None, u=None) -> float | None:
-    r"""$b = -\partial f_i / \partial x_i$ of the declared right-hand side at ``theta`` (its
-    declared parameters' values read there), averaged over ``states`` and ``u`` (at the
-    declared initial state and zero inputs when ``None``); ``None`` for a physics declared
-    by its step, whose rate is not at hand, or where $b$ is not finite."""
+    r"""$b = -\partial f_i / \partial x_i$ of the declared right-hand side, the declared
+    parameters' values (numbers) read from ``theta``, averaged over ``states`` and ``u``
+    (at the declared initial state and zero inputs when ``None``); ``None`` for a physics
+    declared by its step, whose rate is not at hand, or where $b$ is not finite."""
     rhs = getattr(physics, "rhs", None)
     if rhs is None:
         return None
     n = physics.n_states
     if states is None:
         states, u = np.asarray(physics.x0, float)[None], np.zeros((1, physics.n_inputs))
-    values = {name: _number(theta.get(name, p)) for name, p in physics.parameters.items()}
+    values = {name: theta.get(name, p.value) for name, p in physics.parameters.items()}
     with jax.enable_x64(True):
         params = {name: jnp.asarray(value, jnp.float64) for name, value in values.items()}
         rate = jax.grad(lambda x, w: rhs(x, w, params)[i])
@@ -84,31 +80,21 @@ def declared_damping(physics, theta: dict, i: int, states=None, u=None) -> float
     return damping if np.isfinite(damping) else None
 
 
-def _directional(effect, physics, theta: dict, states=None, u=None):
-    """``(forward, backward)`` damping of the velocity ``effect`` brakes by direction, or
-    ``None`` where the declared damping is not at hand."""
+def directional_dampings(effect, physics, theta: dict, states=None, u=None):
+    r"""``(forward, backward)``: the damping $b \pm c$ of the velocity a
+    [`DirectionalDamping`][sk_offwhite.DirectionalDamping] brakes, in each direction
+    (`declared_damping` over ``states``); ``None`` where the declared damping is not at hand."""
     b = declared_damping(physics, theta, effect.velocity, states, u)
     if b is None:
         return None
-    c = _number(theta.get(f"{effect.name}_difference", effect.difference))
+    c = float(theta.get(f"{effect.name}_difference", effect.difference))
     return b + c, b - c
-
-
-def direction_reasons(physics, effects, theta: dict) -> list[str]:
-    """Why a set's directional damping is not physical: it leaves a direction's damping
-    negative (an energy source), the declared damping taken at the declared initial state."""
-    reasons = []
-    for effect in (e for e in effects if isinstance(e, DirectionalDamping)):
-        pair = _directional(effect, physics, theta)
-        if pair is not None and min(pair) < 0:
-            reasons.append(f"{effect.name} leaves a direction of motion undamped")
-    return reasons
 
 
 def direction_sentence(effect, physics, theta: dict, states, u) -> str | None:
     """The damping of each direction a [`DirectionalDamping`][sk_offwhite.DirectionalDamping]
     leaves, over the simulated ``states``."""
-    pair = _directional(effect, physics, theta, states, u)
+    pair = directional_dampings(effect, physics, theta, states, u)
     if pair is None:
         return None
     forward, backward = pair

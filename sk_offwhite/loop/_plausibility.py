@@ -5,7 +5,7 @@ the declared physics' fit (a resistance from 2 to 751), or across zero, is a sta
 lowers the error, but the physics it leaves is not the plant's; so is a set that holds a
 promoted dictionary term, which names no law (`dictionary_reasons`), and a set whose
 directional damping leaves a direction of motion driven rather than damped
-(`sk_offwhite.loop._energy.direction_reasons`). The loop never
+(`direction_reasons`). The loop never
 chooses a stand-in over a physical set within ``tolerance`` of its CV error, and says which
 one is which (`stand_in_reasons`). A set whose effects do not each lower the
 cross-validated error by ``min_gain`` over the set without them is not adopted
@@ -18,12 +18,14 @@ from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from ..effects import DictionaryTerm
+from ..effects import DictionaryTerm, DirectionalDamping
+from ._energy import directional_dampings
 
 __all__ = [
     "STAND_IN_FACTOR",
     "chosen_index",
     "dictionary_reasons",
+    "direction_reasons",
     "earns_every_effect",
     "stand_in_reasons",
 ]
@@ -97,3 +99,16 @@ def dictionary_reasons(effects) -> list[str]:
         return []
     verb = "is a dictionary term" if len(terms) == 1 else "are dictionary terms"
     return [f"{', '.join(terms)} {verb} (no physical law)"]
+
+
+def direction_reasons(physics, effects, fitted: Mapping) -> list[str]:
+    """Why a set's directional damping is not physical: it leaves a direction's damping
+    negative (an energy source), the declared damping taken at the declared initial state
+    (`directional_dampings`, with the ``fitted`` values; empty: physical)."""
+    values = {name: _value(parameter) for name, parameter in fitted.items()}
+    reasons = []
+    for effect in (e for e in effects if isinstance(e, DirectionalDamping)):
+        pair = directional_dampings(effect, physics, values)
+        if pair is not None and min(pair) < 0:
+            reasons.append(f"{effect.name} leaves a direction of motion undamped")
+    return reasons

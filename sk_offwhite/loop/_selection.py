@@ -22,11 +22,11 @@ import numpy as np
 
 from ..effects import DictionaryTerm, VaryingParameter
 from ._cv import structure_cv
-from ._energy import direction_reasons
 from ._fits import label, member_start, own, quick_fit
 from ._plausibility import (
     chosen_index,
     dictionary_reasons,
+    direction_reasons,
     earns_every_effect,
     stand_in_reasons,
 )
