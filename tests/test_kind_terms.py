@@ -1,5 +1,6 @@
 """The evidence's functions by declared kind: which variables get which, how they join the
-user's dictionary, and a friction that shows up as the sign of the velocity."""
+user's dictionary, and what they name on plants with a known missing law (a friction, a
+saturating actuator, a convective loss)."""
 
 import re
 
@@ -7,9 +8,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pysindy as ps
+import pytest
 from conftest import driven_mass, driven_record
 
 from sk_offwhite import Friction, PhysicsModel, RidgeBasis, augment
+from sk_offwhite.datasets import make_convective_block
 from sk_offwhite.dictionaries import compile_basis
 from sk_offwhite.loop import LoopSettings
 from sk_offwhite.loop._candidates import promoted_terms
@@ -24,34 +27,55 @@ def drive(state_kinds=("position", "velocity")) -> PhysicsModel:
     return driven_mass(2.0, 4.0, state_kinds=state_kinds)
 
 
-def test_each_kind_gets_its_functions_and_a_one_signed_input_none():
+def group_names(physics, u, states) -> list[tuple[list[str], list[int]]]:
+    """``(names, columns of v = [x; u])`` of each group, the variable named ``x``."""
+    return [
+        ([f("x") for f in names], columns) for _, names, columns in kind_groups(physics, u, states)
+    ]
+
+
+def test_each_variable_gets_the_functions_of_its_kind_and_where_it_is_seen():
     u = np.linspace(-1.0, 1.0, 20)[:, None]
-    groups = [([f("x") for f in names], columns) for _, names, columns in kind_groups(drive(), u)]
-    assert groups == [(["sign(x)", "x|x|"], [1]), (["|x|"], [2])]
+    states = np.column_stack([np.linspace(0.0, 2.0, 20), np.linspace(-3.0, 3.0, 20)])
+    assert group_names(drive(), u, states) == [
+        (["sign(x)", "x|x|"], [1]),
+        (["|x|"], [1, 2]),  # the velocity and the input change sign, the position does not
+        (["x/(1.17+|x|)"], [0]),  # the measured position: its knee at its RMS
+        (["x/(0.607+|x|)"], [2]),
+    ]
     tank = PhysicsModel.from_ode(
         lambda x, u, theta: jnp.stack([u[0] - theta["k"] * x[0]]), DT, output=0,
         parameters={"k": 1.0}, n_states=1, n_inputs=1, state_kinds=("level",),
     )  # fmt: skip
-    groups = [([f("h") for f in names], columns) for _, names, columns in kind_groups(tank, u)]
-    assert groups == [(["sqrt|h|"], [0]), (["|h|"], [1])]
-    assert [columns for *_, columns in kind_groups(tank, np.abs(u))] == [[0]]
+    names = group_names(tank, np.abs(u), states[:, :1])
+    assert names == [(["sqrt|x|"], [0]), (["x/(1.17+|x|)"], [0]), (["x/(0.607+|x|)"], [1])]
+
+
+def test_a_temperature_gets_powers_of_its_excess_over_its_lowest_value():
+    heater = make_convective_block(n_samples=50, random_state=0).physics
+    temperatures = np.linspace(300.0, 310.0, 20)[:, None]
+    (excess, _, _) = kind_groups(heater, np.ones((20, 1)), temperatures)
+    assert [f("T") for f in excess[1]] == ["(T-300)^1.25", "(T-300)^2"]
+    np.testing.assert_allclose(excess[0][0](np.array([300.0, 316.0])), [0.0, 32.0])
 
 
 def test_the_kind_columns_come_after_the_dictionary_s_own():
     library = ps.PolynomialLibrary(degree=2)
-    combined = with_kind_terms(library, drive(), np.linspace(-1, 1, 20)[:, None])
+    u, states = np.linspace(-1, 1, 20)[:, None], np.ones((20, 2))
+    combined = with_kind_terms(library, drive(), u, states)
     names = compile_basis(combined, ("q", "v", "tau"), 1).names
     own = len(compile_basis(library, ("q", "v", "tau"), 1).names)
     assert own == 10 and names[:own] == compile_basis(library, ("q", "v", "tau"), 1).names
-    assert names[own:] == ("sign(v)", "v|v|", "|tau|")
+    assert names[own:] == ("sign(v)", "v|v|", "|tau|", "q/(1+|q|)", "tau/(0.607+|tau|)")
     assert library.get_params() == ps.PolynomialLibrary(degree=2).get_params()  # untouched
     ridge = RidgeBasis()
-    assert with_kind_terms(ridge, drive(), np.ones((20, 1))) is None
+    assert with_kind_terms(ridge, drive(), np.ones((20, 1)), states) is None
 
 
 def test_the_functions_are_the_same_in_numpy_and_in_jax():
     x = np.array([-2.0, -0.5, 0.0, 0.5, 2.0])
-    combined = with_kind_terms(ps.PolynomialLibrary(degree=1), drive(), x[:, None])
+    states = np.column_stack([np.zeros(5), x])  # an unmeasured velocity, a position at rest
+    combined = with_kind_terms(ps.PolynomialLibrary(degree=1), drive(), x[:, None], states)
     own = 4  # 1, q, v, tau
     v = np.column_stack([x, x, x])
     with jax.enable_x64(True):
@@ -60,8 +84,9 @@ def test_the_functions_are_the_same_in_numpy_and_in_jax():
                 jnp.asarray(v)
             )
         )[:, 0, own:]
-    expected = np.column_stack([np.sign(x), x * np.abs(x), np.abs(x)])
-    np.testing.assert_allclose(jax_rows, expected)
+    knee = np.sqrt(np.mean(x**2))
+    expected = [np.sign(x), x * np.abs(x), np.abs(x), np.abs(x), x / (knee + np.abs(x))]
+    np.testing.assert_allclose(jax_rows, np.column_stack(expected))
 
 
 def friction_record(n: int = 600, seed: int = 0):
@@ -75,14 +100,14 @@ def test_a_missing_friction_shows_up_as_an_odd_function_of_the_velocity_not_as_v
     friction (``v^2``, ``q tau``); the velocity's kind adds the odd shapes, which explain
     more, in a note. The hypotheses and the promoted terms are the dictionary's alone."""
     u, z = friction_record()
-    search = Search(u, z, LoopSettings(n_jobs=1, kind_notes=True))
+    search = Search(u, z, LoopSettings(n_jobs=1))
     library = ps.PolynomialLibrary(degree=2)
     _, hypotheses = read_evidence(search, drive(), library)
     (note,) = search.notes
     assert note.startswith("In the v equation the functions of the variables' kinds")
     found = note.split("dictionary: ")[1].split(" of the")[0]
-    assert sorted(re.sub(r" \d+%", "", found).split(", ")) == ["sign(v)", "v|v|"]
-    assert "|tau|" not in found
+    assert sorted(re.sub(r" \d+%", "", found).split(", ")[:2]) == ["sign(v)", "v|v|"]
+    assert "|tau| " not in found  # the force's size explains less than the dictionary
     assert all(0 <= t.column < 10 for h in hypotheses for t in h.terms)
     promoted = promoted_terms(hypotheses, library, ("q", "v", "tau"), DT)
     assert promoted and all(isinstance(c.effect.column, int) for c in promoted)
@@ -90,17 +115,73 @@ def test_a_missing_friction_shows_up_as_an_odd_function_of_the_velocity_not_as_v
 
 def test_no_note_without_the_setting():
     u, z = friction_record()
-    search = Search(u, z, LoopSettings(n_jobs=1))
+    search = Search(u, z, LoopSettings(n_jobs=1, kind_notes=False))
     read_evidence(search, drive(), ps.PolynomialLibrary(degree=2))
     assert search.notes == []
 
 
 def test_no_note_where_no_kind_function_beats_the_dictionary():
     u, z = friction_record()
-    search = Search(u, z, LoopSettings(n_jobs=1, kind_notes=True))
+    search = Search(u, z, LoopSettings(n_jobs=1))
     with_sign = ps.GeneralizedLibrary(
         [ps.PolynomialLibrary(degree=1), ps.CustomLibrary([sign_of], [lambda x: f"s({x})"])],
         inputs_per_library=[[0, 1, 2], [1]],
     )
     read_evidence(search, drive(), with_sign)
     assert not any("sign(v)" in note for note in search.notes)
+
+
+def saturated_drive_rhs(x, u, theta):
+    """The drive of `driven_mass`, its force saturating at 6 N: ``6 tanh(tau / 6)``."""
+    return jnp.stack([x[1], (6.0 * jnp.tanh(u[0] / 6.0) - theta["Fv"] * x[1]) / theta["M"]])
+
+
+def kind_shares(note: str) -> dict[str, float]:
+    """``{function: share}`` of a note's functions."""
+    found = note.split("dictionary: ")[1].split(" of the")[0]
+    return {name: float(share) for name, share in re.findall(r"(\S+) (\d+)%", found)}
+
+
+@pytest.fixture(scope="module")
+def saturated_record():
+    truth = drive()
+    settings = dict(state_names=("q", "v"), input_names=("tau",), n_states=2, n_inputs=1)
+    truth = PhysicsModel.from_ode(
+        saturated_drive_rhs, DT, output=0, parameters={"M": 2.0, "Fv": 4.0}, **settings
+    )
+    return driven_record(truth, 600, 0)
+
+
+def test_a_saturating_actuator_shows_up_as_a_saturation_in_any_units(saturated_record):
+    """The force saturates as ``tanh``, a law none of the functions is; the rational
+    saturation of the force still explains more than any polynomial term of degree 2 (odd
+    in the force where ``tau^2`` is even), and rescaling the force (N to mN) leaves every
+    share as it is."""
+    u, z = saturated_record
+    notes = {}
+    for unit in (1.0, 1e3):
+        search = Search(u * unit, z, LoopSettings(n_jobs=1))
+        physics = drive().with_parameters(M=2.0 * unit, Fv=4.0 * unit)
+        read_evidence(search, physics, ps.PolynomialLibrary(degree=2))
+        (notes[unit],) = [note for note in search.notes if note.startswith("In the v equation")]
+    shares = kind_shares(notes[1.0])
+    assert next(iter(shares)).startswith("tau/(")
+    best = re.search(r"the dictionary's best, (.+): (\d+)%", notes[1.0])
+    assert best.group(1) != "tau" and shares[next(iter(shares))] > float(best.group(2)) + 5
+    assert list(kind_shares(notes[1e3]).values()) == list(shares.values())
+
+
+def test_a_convective_loss_shows_up_as_a_power_of_the_temperature_excess():
+    """The heated block loses heat as the power 4/3 of its excess over the ambient; the
+    physics declares Newton's linear law. A linear dictionary (absorbed by the physics)
+    explains nothing; the powers of the temperature's excess explain what is missing."""
+    data = make_convective_block(n_samples=2000, random_state=0)
+    search = Search(data.u, data.z, LoopSettings(n_jobs=1))
+    read_evidence(search, data.physics, ps.PolynomialLibrary(degree=1))
+    (note,) = search.notes
+    shares = kind_shares(note)
+    assert {name for name in shares if name.startswith("(T-")} == {
+        name for name in list(shares)[:2]
+    }
+    powers, others = list(shares.values())[:2], list(shares.values())[2:]
+    assert min(powers) >= 10 and min(powers) > max(others, default=0)

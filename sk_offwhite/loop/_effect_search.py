@@ -12,8 +12,8 @@ The stages, each a module of this package:
 
 1. the declared physics fitted and cross-validated (`_evidence`);
 2. the evidence: what each dictionary term would explain that the declared parameters cannot
-   absorb (with ``kind_notes``, in a note, the functions a physicist tries first for the
-   declared kinds: a velocity's sign, a level's square root, `_kind_terms`), and the
+   absorb (and, in a note, the functions a physicist tries first for each variable: a
+   velocity's sign, a level's square root, a saturation, `_kind_terms`), and the
    hypotheses of the fitted sparse $\delta$ (`_evidence`, `_corrections`);
 3. the candidates, from the hypotheses, the measured range and the variables' kinds
    (`_proposals`, `_candidates`);
@@ -293,7 +293,7 @@ one_standard_error, release_programs, fit_output_delta, output_bumps, kind_notes
         release_programs: bool = True,
         fit_output_delta: bool = True,
         output_bumps: int = 7,
-        kind_notes: bool = False,
+        kind_notes: bool = True,
     ):
         self.estimator = estimator
         self.cv = cv

@@ -8,10 +8,11 @@ r"""The first stages of the loop: the declared physics fitted, and what it canno
    that no re-adjustment of the declared parameters can. The strongest terms make up the
    hypotheses ([`evidence_hypotheses`][sk_offwhite.loop.evidence_hypotheses]); the fitted
    sparse $\delta$ adds its own when it beats the declared physics under cross-validation.
-   With ``kind_notes`` and a pysindy dictionary, the functions a physicist tries first for
-   each declared kind (`with_kind_terms`: a velocity's sign and $v|v|$, a level's square
-   root, the size of an input that changes sign) are read too, on a fit of their own: a
-   note names those that explain more than the dictionary's best term.
+   With ``kind_notes`` (the default) and a pysindy dictionary, the functions a physicist
+   tries first for each variable (`with_kind_terms`: a velocity's sign and $v|v|$, a
+   level's square root, powers of a temperature's excess, the size of a variable that
+   changes sign, a saturation of a measured state or an input) are read too, on a fit of
+   their own: a note names those that explain more than the dictionary's best term.
 """
 
 from __future__ import annotations
@@ -119,19 +120,20 @@ def read_evidence(search: Search, physics, library):
     share = search.settings.min_share
     if search.settings.kind_notes:
         own = len(evidence.feature_names_)
-        search.notes.extend(kind_notes(search, physics, library, own))
+        search.notes.extend(kind_notes(search, physics, library, own, run.states))
     return evidence, evidence_hypotheses(evidence, run, search.u, min_share=share)
 
 
-def kind_notes(search: Search, physics, library, own: int) -> list[str]:
-    """A line per equation on the functions of the variables' declared kinds
-    (`with_kind_terms`) that would explain more than the dictionary's best term there, each
+def kind_notes(search: Search, physics, library, own: int, states) -> list[str]:
+    """A line per equation on the functions of the variables' kinds (`with_kind_terms`, on
+    the declared physics' simulated ``states``) that would explain more than the
+    dictionary's best term there, each
     in the equation where it explains most, with the share of the declared physics' cost
     each removes alone (``own``: the dictionary's number of columns, which come first).
     Read on a fit of its own, so that they inform the reader and leave
     the loop's hypotheses and candidates as the dictionary makes them. None where the
     dictionary is no pysindy library, no variable has such a kind, or the fit fails."""
-    combined = with_kind_terms(library, physics, search.u)
+    combined = with_kind_terms(library, physics, search.u, states)
     if combined is None:
         return []
     est = search.attempt("evidence of the kinds", evidence_fit, search, physics, combined)

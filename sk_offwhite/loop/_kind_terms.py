@@ -1,36 +1,47 @@
 r"""What a physicist would look for first, by the declared kind of each variable.
 
 Besides the evidence of the user's dictionary (the projected gain of every term at the
-declared fit), the loop reads with ``LoopSettings(kind_notes=True)``, for a pysindy
-dictionary and on a fit of its own, the functions a physicist tries first for each
-declared kind:
+declared fit), the loop reads, for a pysindy dictionary and on a fit of its own, the
+functions a physicist tries first for each declared kind and where each variable is
+seen (``LoopSettings(kind_notes=True)``, the default):
 
-| kind | functions |
-|---|---|
-| velocity, rate | $\operatorname{sign}(v)$ (a Coulomb friction), $v\lvert v\rvert$ (a drag) |
-| level | $\sqrt{\lvert h\rvert}$ (an outflow through an orifice) |
-| an input that changes sign | $\lvert u\rvert$ (a loss in the size of an effort) |
+| variable | functions | a sign of |
+|---|---|---|
+| velocity, rate | $\operatorname{sign}(v)$, $v\lvert v\rvert$ | a Coulomb friction, a drag |
+| level | $\sqrt{\lvert h\rvert}$ | an outflow through an orifice |
+| temperature | $(T - T_{\min})^{5/4}$, $(T - T_{\min})^2$ | convection, radiation |
+| changes sign | $\lvert x\rvert$ | a loss in an effort's size, a directional damping |
+| measured state, input | $x / (s + \lvert x\rvert)$ | a saturation |
 
-and notes those that explain more than the dictionary's best term: a friction then shows
-up as an odd function of the velocity rather than as the sign-blind $v^2$ of a polynomial
-dictionary (the first-order gains seldom tell the sign from $v\lvert v\rvert$: both name
-the velocity). Each function is unit-free: rescaling its variable rescales its column,
-which the gains do not see. The functions inform the reader only: the hypotheses, the
-candidates and the promoted terms stay the dictionary's, whose choices the functions'
-columns would otherwise shift.
+$T_{\min}$ is the lowest temperature the declared physics simulates on the record and
+$s$ the variable's RMS there, so each function is unit-free: rescaling or shifting a
+variable's units rescales its column, which the gains do not see. The note names those
+that explain more than the dictionary's best term: a friction then shows up as an odd
+function of the velocity rather than as the sign-blind $v^2$ of a polynomial dictionary,
+a saturation as a saturation rather than as a cubic. The functions inform the reader
+only: the hypotheses, the candidates and the promoted terms stay the dictionary's, whose
+choices the functions' columns would otherwise shift.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from ..dictionaries._compiled import _xp
 from ..effects._hidden import n_declared_states
 from ..model._kinds import LEVEL_KINDS, VELOCITY_KINDS, physical_kinds
+from ..model._physics import measured_states
 
 __all__ = ["with_kind_terms"]
+
+TEMPERATURE_POWERS = (1.25, 2.0)
+"""Powers of a temperature's excess: natural convection's 5/4 and radiation's first
+correction (the square term of $T^4 - T_a^4$ about the ambient)."""
+
+Group = tuple[tuple[Callable, ...], tuple[Callable, ...], list[int]]
+"""``(functions, name functions, columns of v = [x; u])`` of one pysindy ``CustomLibrary``."""
 
 
 def sign_of(x):
@@ -69,34 +80,82 @@ def size_name(x: str) -> str:
     return f"|{x}|"
 
 
-def kind_groups(physics, u: np.ndarray) -> list[tuple[tuple, tuple, list[int]]]:
-    """``(functions, names, columns of v = [x; u])`` of each kind's functions, for the
-    declared states and inputs that have that kind (an input only where it changes
-    sign: elsewhere $|u|$ is $\\pm u$, a column the dictionary holds)."""
+def saturation(scale: float) -> tuple[Callable, Callable]:
+    """``x / (scale + |x|)`` and its name: a saturation whose knee is at ``scale``."""
+
+    def saturating(x):
+        return x / (scale + _xp(x).abs(x))
+
+    def saturating_name(x: str) -> str:
+        return f"{x}/({scale:.3g}+|{x}|)"
+
+    return saturating, saturating_name
+
+
+def excess_power(floor: float, power: float) -> tuple[Callable, Callable]:
+    """``|x - floor|^power`` and its name: a power of the excess over ``floor``."""
+
+    def excess(x):
+        return _xp(x).abs(x - floor) ** power
+
+    def excess_name(x: str) -> str:
+        return f"({x}-{floor:.4g})^{power:g}"
+
+    return excess, excess_name
+
+
+def kind_groups(physics, u: np.ndarray, states: np.ndarray) -> list[Group]:
+    """The `Group` of each kind's functions, for the declared states (simulated as
+    ``states``) and the inputs ``u`` that have that kind (`with_kind_terms`)."""
     n_declared = n_declared_states(physics)
-    kinds = physical_kinds(physics)
-    states = kinds.states[:n_declared]
-    velocities = [i for i, kind in enumerate(states) if kind in VELOCITY_KINDS]
-    levels = [i for i, kind in enumerate(states) if kind in LEVEL_KINDS]
-    u = np.asarray(u, float)
-    signed = [n_declared + j for j in range(u.shape[1]) if u[:, j].min() < 0 < u[:, j].max()]
+    values = np.column_stack([np.asarray(states, float)[:, :n_declared], np.asarray(u, float)])
+    kinds = physical_kinds(physics).states[:n_declared]
+    velocities = [i for i, kind in enumerate(kinds) if kind in VELOCITY_KINDS]
+    levels = [i for i, kind in enumerate(kinds) if kind in LEVEL_KINDS]
+    signed = [j for j in range(values.shape[1]) if values[:, j].min() < 0 < values[:, j].max()]
     groups = [
         ((sign_of, signed_square), (sign_name, signed_square_name), velocities),
         ((root_of,), (root_name,), levels),
         ((size_of,), (size_name,), signed),
     ]
+    groups += _temperature_groups(kinds, values) + _saturation_groups(physics, values)
     return [group for group in groups if group[2]]
 
 
-def with_kind_terms(library, physics, u):
+def _temperature_groups(kinds, values: np.ndarray) -> list[Group]:
+    """Powers of each temperature's excess over its lowest simulated value."""
+    groups = []
+    for i, kind in enumerate(kinds):
+        if kind == "temperature" and np.ptp(values[:, i]) > 0:
+            pairs = [excess_power(float(values[:, i].min()), p) for p in TEMPERATURE_POWERS]
+            groups.append((tuple(f for f, _ in pairs), tuple(n for _, n in pairs), [i]))
+    return groups
+
+
+def _saturation_groups(physics, values: np.ndarray) -> list[Group]:
+    """A saturation of each measured state and each input, its knee at the variable's RMS."""
+    n_declared = n_declared_states(physics)
+    measured = [i for i in measured_states(physics.output) or () if i < n_declared]
+    columns = sorted(set(measured)) + list(range(n_declared, values.shape[1]))
+    groups = []
+    for j in columns:
+        scale = float(np.sqrt(np.mean(values[:, j] ** 2)))
+        if scale > 0 and np.isfinite(scale):
+            function, name = saturation(scale)
+            groups.append(((function,), (name,), [j]))
+    return groups
+
+
+def with_kind_terms(library, physics, u, states):
     """The evidence dictionary: ``library`` with the kind functions of ``physics``'
-    variables appended after its own columns (`kind_groups`); ``None`` where ``library`` is
-    no pysindy library, or where no variable has a kind with functions."""
+    variables (`kind_groups`, on the inputs ``u`` and the simulated ``states``) appended
+    after its own columns; ``None`` where ``library`` is no pysindy library, or where no
+    variable has a kind with functions."""
     import pysindy as ps
 
     if not isinstance(library, ps.feature_library.base.BaseFeatureLibrary):
         return None
-    groups = kind_groups(physics, u)
+    groups = kind_groups(physics, u, states)
     if not groups:
         return None
     n_variables = n_declared_states(physics) + physics.n_inputs

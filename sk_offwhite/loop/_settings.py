@@ -143,12 +143,13 @@ class LoopSettings:
         output map, where the outputs read states (a sensor's static nonlinearity).
     output_bumps : int, default=7
         Gaussian bumps of each measured state in that correction's dictionary.
-    kind_notes : bool, default=False
+    kind_notes : bool, default=True
         Also read, on an evidence fit of its own, the functions a physicist tries first for
-        each declared kind (a velocity's sign and $v|v|$, a level's square root, the size of
-        an input that changes sign), and note those that explain more than the dictionary's
-        best term. They inform the reader and change no choice; the extra fit compiles a
-        program of its own.
+        each variable (a velocity's sign and $v|v|$, a level's square root, powers of a
+        temperature's excess, the size of a variable that changes sign, a saturation of a
+        measured state or an input), and note those that explain more than the
+        dictionary's best term. They inform the reader and change no choice; ``False``
+        skips that fit (a program of its own to compile).
     """
 
     gammas: tuple[float, ...] | None = None
@@ -179,7 +180,7 @@ class LoopSettings:
     release_programs: bool = True
     fit_output_delta: bool = True
     output_bumps: int = 7
-    kind_notes: bool = False
+    kind_notes: bool = True
 
     def __post_init__(self):
         values = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
