@@ -35,7 +35,11 @@ BENCHMARKS = {
 """Name: (example script, headline record, unit, scale from SI)."""
 
 COLUMNS = ["benchmark", "record", "unit", "declared physics", "augmented physics",
-           "chosen model", "chosen", "effects added", "seconds"]  # fmt: skip
+           "chosen model", "chosen", "effects added", "functions of the kinds",
+           "seconds"]  # fmt: skip
+
+KIND_NOTE = "the functions of the variables' kinds explain more than the dictionary: "
+"""What the report's note on the functions of the variables' kinds says before its list."""
 
 
 def run_example(script: str, out: Path) -> float:
@@ -68,7 +72,18 @@ def loop_row(name: str, facts: dict, seconds: float, protocol: str = "init_windo
     effects = "; ".join(f"{e['name']}: {e['description']}" for e in facts["effects"])
     return [name + ("" if protocol == "init_window" else f" ({protocol})"), record, unit,
             scaled("declared physics"), scaled("augmented physics"), scaled(chosen_label),
-            chosen_label, effects or "none", seconds]  # fmt: skip
+            chosen_label, effects or "none", kind_findings(facts["notes"]), seconds]  # fmt: skip
+
+
+def kind_findings(notes: list[str]) -> str:
+    """The functions of the variables' kinds that explain more than the dictionary, per
+    equation, as the report's notes list them (``"none"`` where none does)."""
+    found = [
+        note.removeprefix("In the ").replace(f" equation {KIND_NOTE}", ": ").split(" of the")[0]
+        for note in notes
+        if KIND_NOTE in note
+    ]
+    return "; ".join(found) or "none"
 
 
 def main() -> None:
@@ -91,7 +106,9 @@ def main() -> None:
         "validation RMSE in the benchmark's unit under its protocol (init_window: the initial "
         "state estimated from the record's first samples, not scored; original: the initial "
         "state fitted); chosen: the model of lowest cross-validated error on the estimation "
-        "record; seconds: the example's wall time."
+        "record; functions of the kinds: those a physicist tries first for each variable that "
+        "explain more of the declared physics' cost than the dictionary's best term, each "
+        "alone, per equation; seconds: the example's wall time."
     ]
     tables = [table("The closed loop on the measured benchmarks", COLUMNS, rows, notes)]
     write_results("bench_measured_loops", tables, data=data)

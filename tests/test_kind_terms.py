@@ -29,9 +29,8 @@ def drive(state_kinds=("position", "velocity")) -> PhysicsModel:
 
 def group_names(physics, u, states) -> list[tuple[list[str], list[int]]]:
     """``(names, columns of v = [x; u])`` of each group, the variable named ``x``."""
-    return [
-        ([f("x") for f in names], columns) for _, names, columns in kind_groups(physics, u, states)
-    ]
+    groups = kind_groups(physics, u, states)
+    return [([f("x") for f in group.names], group.columns) for group in groups]
 
 
 def test_each_variable_gets_the_functions_of_its_kind_and_where_it_is_seen():
@@ -39,7 +38,8 @@ def test_each_variable_gets_the_functions_of_its_kind_and_where_it_is_seen():
     states = np.column_stack([np.linspace(0.0, 2.0, 20), np.linspace(-3.0, 3.0, 20)])
     assert group_names(drive(), u, states) == [
         (["sign(x)", "x|x|"], [1]),
-        (["|x|"], [1, 2]),  # the velocity and the input change sign, the position does not
+        (["|x|"], [1]),  # the velocity and the input change sign, the position does not
+        (["|x|"], [2]),
         (["x/(1.17+|x|)"], [0]),  # the measured position: its knee at its RMS
         (["x/(0.607+|x|)"], [2]),
     ]
@@ -54,28 +54,31 @@ def test_each_variable_gets_the_functions_of_its_kind_and_where_it_is_seen():
 def test_a_temperature_gets_powers_of_its_excess_over_its_lowest_value():
     heater = make_convective_block(n_samples=50, random_state=0).physics
     temperatures = np.linspace(300.0, 310.0, 20)[:, None]
-    (excess, _, _) = kind_groups(heater, np.ones((20, 1)), temperatures)
-    assert [f("T") for f in excess[1]] == ["(T-300)^1.25", "(T-300)^2"]
-    np.testing.assert_allclose(excess[0][0](np.array([300.0, 316.0])), [0.0, 32.0])
+    excess = kind_groups(heater, np.ones((20, 1)), temperatures)[0]
+    assert [f("T") for f in excess.names] == ["(T-300)^1.25", "(T-300)^2"]
+    np.testing.assert_allclose(excess.functions[1](np.array([300.0, 316.0])), [0.0, 256.0])
+    assert excess.meanings == ("a convective loss", "a radiative loss")
 
 
 def test_the_kind_columns_come_after_the_dictionary_s_own():
     library = ps.PolynomialLibrary(degree=2)
     u, states = np.linspace(-1, 1, 20)[:, None], np.ones((20, 2))
-    combined = with_kind_terms(library, drive(), u, states)
+    combined = with_kind_terms(library, drive(), kind_groups(drive(), u, states))
     names = compile_basis(combined, ("q", "v", "tau"), 1).names
     own = len(compile_basis(library, ("q", "v", "tau"), 1).names)
     assert own == 10 and names[:own] == compile_basis(library, ("q", "v", "tau"), 1).names
     assert names[own:] == ("sign(v)", "v|v|", "|tau|", "q/(1+|q|)", "tau/(0.607+|tau|)")
     assert library.get_params() == ps.PolynomialLibrary(degree=2).get_params()  # untouched
     ridge = RidgeBasis()
-    assert with_kind_terms(ridge, drive(), np.ones((20, 1)), states) is None
+    assert with_kind_terms(ridge, drive(), kind_groups(drive(), u, states)) is None
+    assert with_kind_terms(library, drive(), []) is None
 
 
 def test_the_functions_are_the_same_in_numpy_and_in_jax():
     x = np.array([-2.0, -0.5, 0.0, 0.5, 2.0])
     states = np.column_stack([np.zeros(5), x])  # an unmeasured velocity, a position at rest
-    combined = with_kind_terms(ps.PolynomialLibrary(degree=1), drive(), x[:, None], states)
+    groups = kind_groups(drive(), x[:, None], states)
+    combined = with_kind_terms(ps.PolynomialLibrary(degree=1), drive(), groups)
     own = 4  # 1, q, v, tau
     v = np.column_stack([x, x, x])
     with jax.enable_x64(True):
@@ -105,9 +108,10 @@ def test_a_missing_friction_shows_up_as_an_odd_function_of_the_velocity_not_as_v
     _, hypotheses = read_evidence(search, drive(), library)
     (note,) = search.notes
     assert note.startswith("In the v equation the functions of the variables' kinds")
-    found = note.split("dictionary: ")[1].split(" of the")[0]
-    assert sorted(re.sub(r" \d+%", "", found).split(", ")[:2]) == ["sign(v)", "v|v|"]
-    assert "|tau| " not in found  # the force's size explains less than the dictionary
+    shares = kind_shares(note)
+    assert sorted(list(shares)[:2]) == ["sign(v)", "v|v|"]
+    assert re.search(r"sign\(v\) \d+% \(a Coulomb friction\)", note)
+    assert "|tau|" not in shares  # the force's size explains less than the dictionary
     assert all(0 <= t.column < 10 for h in hypotheses for t in h.terms)
     promoted = promoted_terms(hypotheses, library, ("q", "v", "tau"), DT)
     assert promoted and all(isinstance(c.effect.column, int) for c in promoted)

@@ -29,7 +29,7 @@ from ..model._equations import output_name
 from ..runtime._parallel import gather, start_workers
 from ._fits import fit_continued, warm_physics
 from ._hypotheses import evidence_hypotheses, form_hypotheses
-from ._kind_terms import with_kind_terms
+from ._kind_terms import column_meanings, kind_groups, with_kind_terms
 from ._scoring import MODEL_LABELS
 from ._search import FIT_ERRORS, Search
 
@@ -125,15 +125,16 @@ def read_evidence(search: Search, physics, library):
 
 
 def kind_notes(search: Search, physics, library, own: int, states) -> list[str]:
-    """A line per equation on the functions of the variables' kinds (`with_kind_terms`, on
+    """A line per equation on the functions of the variables' kinds (`kind_groups`, on
     the declared physics' simulated ``states``) that would explain more than the
-    dictionary's best term there, each
-    in the equation where it explains most, with the share of the declared physics' cost
-    each removes alone (``own``: the dictionary's number of columns, which come first).
-    Read on a fit of its own, so that they inform the reader and leave
-    the loop's hypotheses and candidates as the dictionary makes them. None where the
-    dictionary is no pysindy library, no variable has such a kind, or the fit fails."""
-    combined = with_kind_terms(library, physics, search.u, states)
+    dictionary's best term there, each in the equation where it explains most, with the
+    share of the declared physics' cost each removes alone and what it is a sign of
+    (``own``: the dictionary's number of columns, which come first). Read on a fit of its
+    own, so that they inform the reader and leave the loop's hypotheses and candidates as
+    the dictionary makes them. None where the dictionary is no pysindy library, no
+    variable has such a kind, or the fit fails."""
+    groups = kind_groups(physics, search.u, states)
+    combined = with_kind_terms(library, physics, groups)
     if combined is None:
         return []
     est = search.attempt("evidence of the kinds", evidence_fit, search, physics, combined)
@@ -143,9 +144,9 @@ def kind_notes(search: Search, physics, library, own: int, states) -> list[str]:
     # a kind function is named in the equation where it explains most
     elsewhere = gains < np.max(gains, axis=0, keepdims=True)
     gains[:, own:] = np.where(elsewhere[:, own:], 0.0, gains[:, own:])
-    names = est.physics_.state_names
+    names = (est.feature_names_, column_meanings(groups))
     lines = (
-        _kind_line(names[state], est.feature_names_, gains[row], own)
+        _kind_line(est.physics_.state_names[state], names, gains[row], own)
         for row, state in enumerate(est.delta_states_)
     )
     return [line for line in lines if line]
@@ -153,12 +154,14 @@ def kind_notes(search: Search, physics, library, own: int, states) -> list[str]:
 
 def _kind_line(equation: str, names, gains: np.ndarray, own: int) -> str:
     """The note for one equation, or ``""`` when no kind function (columns from ``own``)
-    beats the dictionary's best term."""
+    beats the dictionary's best term; ``names``: the columns' names and what each kind
+    function is a sign of."""
+    names, meanings = names
     best = int(np.argmax(gains[:own]))
     better = [j for j in np.argsort(-gains[own:]) + own if gains[j] > gains[best]]
     if not better:
         return ""
-    found = ", ".join(f"{names[j]} {gains[j]:.0%}" for j in better)
+    found = ", ".join(f"{names[j]} {gains[j]:.0%} ({meanings[j - own]})" for j in better)
     return (
         f"In the {equation} equation the functions of the variables' kinds explain more than "
         f"the dictionary: {found} of the declared physics' cost, each alone (the "

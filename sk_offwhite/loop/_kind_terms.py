@@ -26,6 +26,7 @@ choices the functions' columns would otherwise shift.
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -40,8 +41,15 @@ TEMPERATURE_POWERS = (1.25, 2.0)
 """Powers of a temperature's excess: natural convection's 5/4 and radiation's first
 correction (the square term of $T^4 - T_a^4$ about the ambient)."""
 
-Group = tuple[tuple[Callable, ...], tuple[Callable, ...], list[int]]
-"""``(functions, name functions, columns of v = [x; u])`` of one pysindy ``CustomLibrary``."""
+
+class KindGroup(NamedTuple):
+    """Functions of one pysindy ``CustomLibrary``: each with its name function and what it
+    is a sign of, on the variables ``columns`` of ``v = [x; u]``."""
+
+    functions: tuple[Callable, ...]
+    names: tuple[Callable, ...]
+    meanings: tuple[str, ...]
+    columns: list[int]
 
 
 def sign_of(x):
@@ -104,9 +112,9 @@ def excess_power(floor: float, power: float) -> tuple[Callable, Callable]:
     return excess, excess_name
 
 
-def kind_groups(physics, u: np.ndarray, states: np.ndarray) -> list[Group]:
-    """The `Group` of each kind's functions, for the declared states (simulated as
-    ``states``) and the inputs ``u`` that have that kind (`with_kind_terms`)."""
+def kind_groups(physics, u: np.ndarray, states: np.ndarray) -> list[KindGroup]:
+    """The `KindGroup` of each kind's functions, for the declared states (simulated as
+    ``states``) and the inputs ``u`` that have that kind (the module docstring's table)."""
     n_declared = n_declared_states(physics)
     values = np.column_stack([np.asarray(states, float)[:, :n_declared], np.asarray(u, float)])
     kinds = physical_kinds(physics).states[:n_declared]
@@ -114,25 +122,37 @@ def kind_groups(physics, u: np.ndarray, states: np.ndarray) -> list[Group]:
     levels = [i for i, kind in enumerate(kinds) if kind in LEVEL_KINDS]
     signed = [j for j in range(values.shape[1]) if values[:, j].min() < 0 < values[:, j].max()]
     groups = [
-        ((sign_of, signed_square), (sign_name, signed_square_name), velocities),
-        ((root_of,), (root_name,), levels),
-        ((size_of,), (size_name,), signed),
-    ]
+        KindGroup(
+            (sign_of, signed_square), (sign_name, signed_square_name),
+            ("a Coulomb friction", "a drag"), velocities,
+        ),
+        KindGroup((root_of,), (root_name,), ("an outflow through an orifice",), levels),
+        KindGroup(
+            (size_of,), (size_name,), ("a damping that differs with the direction",),
+            [j for j in signed if j in velocities],
+        ),
+        KindGroup(
+            (size_of,), (size_name,), ("a loss in its size",),
+            [j for j in signed if j not in velocities],
+        ),
+    ]  # fmt: skip
     groups += _temperature_groups(kinds, values) + _saturation_groups(physics, values)
-    return [group for group in groups if group[2]]
+    return [group for group in groups if group.columns]
 
 
-def _temperature_groups(kinds, values: np.ndarray) -> list[Group]:
+def _temperature_groups(kinds, values: np.ndarray) -> list[KindGroup]:
     """Powers of each temperature's excess over its lowest simulated value."""
     groups = []
     for i, kind in enumerate(kinds):
         if kind == "temperature" and np.ptp(values[:, i]) > 0:
             pairs = [excess_power(float(values[:, i].min()), p) for p in TEMPERATURE_POWERS]
-            groups.append((tuple(f for f, _ in pairs), tuple(n for _, n in pairs), [i]))
+            functions, names = zip(*pairs, strict=True)
+            meanings = ("a convective loss", "a radiative loss")
+            groups.append(KindGroup(functions, names, meanings, [i]))
     return groups
 
 
-def _saturation_groups(physics, values: np.ndarray) -> list[Group]:
+def _saturation_groups(physics, values: np.ndarray) -> list[KindGroup]:
     """A saturation of each measured state and each input, its knee at the variable's RMS."""
     n_declared = n_declared_states(physics)
     measured = [i for i in measured_states(physics.output) or () if i < n_declared]
@@ -142,25 +162,27 @@ def _saturation_groups(physics, values: np.ndarray) -> list[Group]:
         scale = float(np.sqrt(np.mean(values[:, j] ** 2)))
         if scale > 0 and np.isfinite(scale):
             function, name = saturation(scale)
-            groups.append(((function,), (name,), [j]))
+            groups.append(KindGroup((function,), (name,), ("a saturation",), [j]))
     return groups
 
 
-def with_kind_terms(library, physics, u, states):
-    """The evidence dictionary: ``library`` with the kind functions of ``physics``'
-    variables (`kind_groups`, on the inputs ``u`` and the simulated ``states``) appended
-    after its own columns; ``None`` where ``library`` is no pysindy library, or where no
-    variable has a kind with functions."""
+def column_meanings(groups: Sequence[KindGroup]) -> list[str]:
+    """What each column of the groups' libraries is a sign of, in `with_kind_terms`' column
+    order (a ``CustomLibrary`` lists its functions' columns one function after the other)."""
+    return [meaning for group in groups for meaning in group.meanings for _ in group.columns]
+
+
+def with_kind_terms(library, physics, groups: Sequence[KindGroup]):
+    """The evidence dictionary: ``library`` with the functions of ``groups`` (`kind_groups`
+    of ``physics``' variables) appended after its own columns; ``None`` where ``library``
+    is no pysindy library or there are no groups."""
     import pysindy as ps
 
-    if not isinstance(library, ps.feature_library.base.BaseFeatureLibrary):
-        return None
-    groups = kind_groups(physics, u, states)
-    if not groups:
+    if not isinstance(library, ps.feature_library.base.BaseFeatureLibrary) or not groups:
         return None
     n_variables = n_declared_states(physics) + physics.n_inputs
     libraries = [library] + [
-        ps.CustomLibrary(list(functions), list(names)) for functions, names, _ in groups
+        ps.CustomLibrary(list(group.functions), list(group.names)) for group in groups
     ]
-    inputs: Sequence[list[int]] = [list(range(n_variables))] + [c for *_, c in groups]
+    inputs = [list(range(n_variables))] + [group.columns for group in groups]
     return ps.GeneralizedLibrary(libraries, inputs_per_library=inputs)
