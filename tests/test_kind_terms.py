@@ -16,7 +16,8 @@ from sk_offwhite.datasets import make_convective_block
 from sk_offwhite.dictionaries import compile_basis
 from sk_offwhite.loop import LoopSettings
 from sk_offwhite.loop._candidates import promoted_terms
-from sk_offwhite.loop._evidence import read_evidence
+from sk_offwhite.loop._cv import structure_cv
+from sk_offwhite.loop._evidence import read_evidence, read_kind_notes
 from sk_offwhite.loop._kind_terms import kind_groups, sign_of, with_kind_terms
 from sk_offwhite.loop._search import Search
 
@@ -105,6 +106,7 @@ def test_a_missing_friction_shows_up_as_an_odd_function_of_the_velocity_not_as_v
     u, z = friction_record()
     search = Search(u, z, LoopSettings(n_jobs=1))
     library = ps.PolynomialLibrary(degree=2)
+    read_kind_notes(search, drive(), library)
     _, hypotheses = read_evidence(search, drive(), library)
     (note,) = search.notes
     assert note.startswith("In the v equation the functions of the variables' kinds")
@@ -120,8 +122,8 @@ def test_a_missing_friction_shows_up_as_an_odd_function_of_the_velocity_not_as_v
 def test_no_note_without_the_setting():
     u, z = friction_record()
     search = Search(u, z, LoopSettings(n_jobs=1, kind_notes=False))
-    read_evidence(search, drive(), ps.PolynomialLibrary(degree=2))
-    assert search.notes == []
+    read_kind_notes(search, drive(), ps.PolynomialLibrary(degree=2))
+    assert search.notes == [] and search.failures == []
 
 
 def test_no_note_where_no_kind_function_beats_the_dictionary():
@@ -131,7 +133,7 @@ def test_no_note_where_no_kind_function_beats_the_dictionary():
         [ps.PolynomialLibrary(degree=1), ps.CustomLibrary([sign_of], [lambda x: f"s({x})"])],
         inputs_per_library=[[0, 1, 2], [1]],
     )
-    read_evidence(search, drive(), with_sign)
+    read_kind_notes(search, drive(), with_sign)
     assert not any("sign(v)" in note for note in search.notes)
 
 
@@ -166,7 +168,7 @@ def test_a_saturating_actuator_shows_up_as_a_saturation_in_any_units(saturated_r
     for unit in (1.0, 1e3):
         search = Search(u * unit, z, LoopSettings(n_jobs=1))
         physics = drive().with_parameters(M=2.0 * unit, Fv=4.0 * unit)
-        read_evidence(search, physics, ps.PolynomialLibrary(degree=2))
+        read_kind_notes(search, physics, ps.PolynomialLibrary(degree=2))
         (notes[unit],) = [note for note in search.notes if note.startswith("In the v equation")]
     shares = kind_shares(notes[1.0])
     assert next(iter(shares)).startswith("tau/(")
@@ -181,7 +183,7 @@ def test_a_convective_loss_shows_up_as_a_power_of_the_temperature_excess():
     explains nothing; the powers of the temperature's excess explain what is missing."""
     data = make_convective_block(n_samples=2000, random_state=0)
     search = Search(data.u, data.z, LoopSettings(n_jobs=1))
-    read_evidence(search, data.physics, ps.PolynomialLibrary(degree=1))
+    read_kind_notes(search, data.physics, ps.PolynomialLibrary(degree=1))
     (note,) = search.notes
     shares = kind_shares(note)
     assert {name for name in shares if name.startswith("(T-")} == {
@@ -189,3 +191,14 @@ def test_a_convective_loss_shows_up_as_a_power_of_the_temperature_excess():
     }
     powers, others = list(shares.values())[:2], list(shares.values())[2:]
     assert min(powers) >= 10 and min(powers) > max(others, default=0)
+
+
+def test_the_declared_cross_validation_runs_the_kinds_note_meanwhile_and_scores_the_same():
+    """The loop reads the kinds' note while the folds of the declared physics are fitted:
+    called once, it changes nothing of the score."""
+    u, z = friction_record(n=300)
+    search = Search(u, z, LoopSettings(n_jobs=1, n_folds=2, max_iter=30))
+    calls = []
+    alone = structure_cv(search, drive())
+    assert structure_cv(search, drive(), lambda: calls.append(1)) == alone
+    assert calls == [1]

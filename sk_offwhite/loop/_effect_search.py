@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import copy
 import warnings
+from functools import partial
 from numbers import Integral
 
 import numpy as np
@@ -53,6 +54,7 @@ from ._evidence import (
     delta_hypotheses,
     fit_declared,
     read_evidence,
+    read_kind_notes,
     record_facts,
     reset_notes,
     unfit_notes,
@@ -140,7 +142,7 @@ def _search_from(search: Search, physics, library, given, declared) -> LoopResul
     settings, notes = search.settings, []
     baseline, start, run, reset = declared
     with search.stage("declared physics"):
-        declared_cv = structure_cv(search, start)
+        declared_cv = structure_cv(search, start, partial(read_kind_notes, search, start, library))
         notes += reset_notes(reset, physics) + unfit_notes(baseline)
         facts = record_facts(physics, search.z, run)
     with search.stage("evidence"):

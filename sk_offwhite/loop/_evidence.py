@@ -12,21 +12,26 @@ r"""The first stages of the loop: the declared physics fitted, and what it canno
    tries first for each variable (`with_kind_terms`: a velocity's sign and $v|v|$, a
    level's square root, powers of a temperature's excess, the size of a variable that
    changes sign, a saturation of a measured state or an input) are read too, on a fit of
-   their own: a note names those that explain more than the dictionary's best term.
+   their own (while worker processes cross-validate the declared physics): a note names
+   those that explain more than the dictionary's best term.
 """
 
 from __future__ import annotations
 
 import warnings
 
+import jax
 import numpy as np
 
 from .._estimator import GreyBoxSparseRegressor
 from .._validation import check_record
 from ..certify import identifiability
 from ..diagnose import analyse_residuals, output_jumps, range_violations
+from ..fitting._problem import build_model
 from ..model._equations import output_name
+from ..runtime._backend import to_device
 from ..runtime._parallel import gather, start_workers
+from ..simulation._rollout import free_run_record
 from ._fits import fit_continued, warm_physics
 from ._hypotheses import evidence_hypotheses, form_hypotheses
 from ._kind_terms import column_meanings, kind_groups, with_kind_terms
@@ -110,46 +115,57 @@ def output_names(physics, n_outputs: int) -> list[str]:
 
 
 def read_evidence(search: Search, physics, library):
-    """The physics-only fit with the dictionary's evidence, and its hypotheses; with the
-    setting ``kind_notes``, a note on the functions of the declared kinds (`kind_notes`)
-    joins ``search.notes``."""
+    """The physics-only fit with the dictionary's evidence, and its hypotheses."""
     evidence = search.attempt("evidence", evidence_fit, search, physics, library)
     if evidence is None:
         return None, []
     run = evidence.simulate(search.u)
     share = search.settings.min_share
-    if search.settings.kind_notes:
-        own = len(evidence.feature_names_)
-        search.notes.extend(kind_notes(search, physics, library, own, run.states))
     return evidence, evidence_hypotheses(evidence, run, search.u, min_share=share)
 
 
-def kind_notes(search: Search, physics, library, own: int, states) -> list[str]:
+def read_kind_notes(search: Search, physics, library) -> None:
+    """With the setting ``kind_notes``, the note on the functions of the variables' kinds
+    (`kind_notes`) joins ``search.notes`` (a failed fit: a line of ``search.failures``)."""
+    if search.settings.kind_notes:
+        notes = search.attempt("evidence of the kinds", kind_notes, search, physics, library)
+        search.notes.extend(notes or [])
+
+
+def kind_notes(search: Search, physics, library) -> list[str]:
     """A line per equation on the functions of the variables' kinds (`kind_groups`, on
-    the declared physics' simulated ``states``) that would explain more than the
-    dictionary's best term there, each in the equation where it explains most, with the
-    share of the declared physics' cost each removes alone and what it is a sign of
-    (``own``: the dictionary's number of columns, which come first). Read on a fit of its
-    own, so that they inform the reader and leave the loop's hypotheses and candidates as
-    the dictionary makes them. None where the dictionary is no pysindy library, no
-    variable has such a kind, or the fit fails."""
-    groups = kind_groups(physics, search.u, states)
+    ``physics``' free run) that would explain more than the dictionary's best term there,
+    each in the equation where it explains most, with the share of the declared physics'
+    cost each removes alone and what it is a sign of. Read on a fit of their own, so that
+    they inform the reader and leave the loop's hypotheses and candidates as the
+    dictionary makes them. None where the dictionary is no pysindy library or no variable
+    has such a kind."""
+    groups = kind_groups(physics, search.u, free_run_states(physics, search.u))
     combined = with_kind_terms(library, physics, groups)
     if combined is None:
         return []
-    est = search.attempt("evidence of the kinds", evidence_fit, search, physics, combined)
-    if est is None:
-        return []
+    est = evidence_fit(search, physics, combined)
+    meanings = column_meanings(groups)
+    own = len(est.feature_names_) - len(meanings)  # the dictionary's columns come first
     gains = np.nan_to_num(np.asarray(est.term_gain_, float))
     # a kind function is named in the equation where it explains most
     elsewhere = gains < np.max(gains, axis=0, keepdims=True)
     gains[:, own:] = np.where(elsewhere[:, own:], 0.0, gains[:, own:])
-    names = (est.feature_names_, column_meanings(groups))
+    names = (est.feature_names_, meanings)
     lines = (
         _kind_line(est.physics_.state_names[state], names, gains[row], own)
         for row, state in enumerate(est.delta_states_)
     )
     return [line for line in lines if line]
+
+
+def free_run_states(physics, u) -> np.ndarray:
+    """The states of ``physics``' free run on ``u`` from its ``x0``, at its parameters'
+    values."""
+    with jax.enable_x64(True):
+        model = build_model(physics, None, ())
+        params = {"theta": to_device(physics.parameter_values())}
+        return free_run_record(model, params, physics.x0, u)[0]
 
 
 def _kind_line(equation: str, names, gains: np.ndarray, own: int) -> str:
