@@ -14,8 +14,9 @@ seen (``LoopSettings(kind_notes=True)``, the default):
 | measured state, input | $x / (s + \lvert x\rvert)$ | a saturation |
 
 $T_{\min}$ is the lowest temperature the declared physics simulates on the record and
-$s$ the variable's RMS there, so each function is unit-free: rescaling or shifting a
-variable's units rescales its column, which the gains do not see. The note names those
+$s$ the variable's RMS there, so each function is unit-free: rescaling a variable's unit
+(or shifting a temperature's, from kelvin to degrees Celsius) rescales its column, which
+the gains do not see. The note names those
 that explain more than the dictionary's best term: a friction then shows up as an odd
 function of the velocity rather than as the sign-blind $v^2$ of a polynomial dictionary,
 a saturation as a saturation rather than as a cubic. The functions inform the reader
