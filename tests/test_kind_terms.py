@@ -12,13 +12,22 @@ import pytest
 from conftest import driven_mass, driven_record
 
 from sk_offwhite import Friction, PhysicsModel, RidgeBasis, augment
-from sk_offwhite.datasets import make_convective_block
+from sk_offwhite.datasets import make_convective_block, make_duffing_oscillator
 from sk_offwhite.dictionaries import compile_basis
 from sk_offwhite.loop import LoopSettings
 from sk_offwhite.loop._candidates import promoted_terms
 from sk_offwhite.loop._cv import structure_cv
 from sk_offwhite.loop._evidence import read_evidence, read_kind_notes
-from sk_offwhite.loop._kind_terms import kind_groups, sign_of, with_kind_terms
+from sk_offwhite.loop._kind_terms import (
+    DISSIPATIVE,
+    SATURATING,
+    KindColumn,
+    column_meaning,
+    declared_slopes,
+    kind_groups,
+    sign_of,
+    with_kind_terms,
+)
 from sk_offwhite.loop._search import Search
 
 DT = 0.01
@@ -59,6 +68,7 @@ def test_a_temperature_gets_powers_of_its_excess_over_its_lowest_value():
     assert [f("T") for f in excess.names] == ["(T-300)^1.25", "(T-300)^2"]
     np.testing.assert_allclose(excess.functions[1](np.array([300.0, 316.0])), [0.0, 256.0])
     assert excess.meanings == ("a convective loss", "a radiative loss")
+    assert excess.reading == DISSIPATIVE
 
 
 def test_the_kind_columns_come_after_the_dictionary_s_own():
@@ -202,3 +212,34 @@ def test_the_declared_cross_validation_runs_the_kinds_note_meanwhile_and_scores_
     alone = structure_cv(search, drive())
     assert structure_cv(search, drive(), lambda: calls.append(1)) == alone
     assert calls == [1]
+
+
+def test_a_fitted_sign_reads_as_a_saturation_a_hardening_or_a_source():
+    """Against the declared slope a saturation levels the effect off, with it the effect
+    grows faster than linearly; a friction that pushes its own velocity is a source."""
+    saturation = KindColumn("a saturation", 2, SATURATING)
+    slopes = np.array([0.0, -4.0, 0.5])  # the v equation: -Fv/M v + tau/M
+    assert column_meaning(saturation, 1, 0.3, slopes) == "a saturation"
+    assert "faster than linearly" in column_meaning(saturation, 1, -0.3, slopes)
+    on_q = KindColumn("a saturation", 0, SATURATING)
+    assert column_meaning(on_q, 1, 0.3, slopes) == "a law that levels off"
+    friction = KindColumn("a Coulomb friction", 1, DISSIPATIVE)
+    assert column_meaning(friction, 1, -0.3, slopes) == "a Coulomb friction"
+    assert "source" in column_meaning(friction, 1, 0.3, slopes)
+    assert column_meaning(friction, 0, 0.3, slopes) == "a Coulomb friction"  # not its own
+
+
+def test_the_declared_slopes_are_the_step_s_own():
+    """The drive at 100 Hz: q' = v, v' = (tau - Fv v) / M, one RK4 step."""
+    states = np.zeros((3, 2))
+    slopes = declared_slopes(drive(), states, np.zeros((3, 1)))
+    np.testing.assert_allclose(slopes[1], [0.0, -DT * 2.0, DT / 2.0], rtol=0.02)
+    assert slopes[0, 1] == pytest.approx(DT, rel=0.02)
+
+
+def test_a_hardening_spring_is_read_as_an_effect_that_grows_faster_than_linearly():
+    data = make_duffing_oscillator(n_samples=1000, random_state=0)
+    search = Search(data.u, data.z, LoopSettings(n_jobs=1))
+    read_kind_notes(search, data.physics, ps.PolynomialLibrary(degree=2))
+    (note,) = [note for note in search.notes if note.startswith("In the v equation")]
+    assert re.search(r"y/\(\S+\) \d+% \(an effect that grows faster than linearly\)", note)

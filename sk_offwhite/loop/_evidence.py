@@ -34,7 +34,13 @@ from ..runtime._parallel import gather, start_workers
 from ..simulation._rollout import free_run_record
 from ._fits import fit_continued, warm_physics
 from ._hypotheses import evidence_hypotheses, form_hypotheses
-from ._kind_terms import column_meanings, kind_groups, with_kind_terms
+from ._kind_terms import (
+    column_meaning,
+    declared_slopes,
+    kind_columns,
+    kind_groups,
+    with_kind_terms,
+)
 from ._scoring import MODEL_LABELS
 from ._search import FIT_ERRORS, Search
 
@@ -140,22 +146,28 @@ def kind_notes(search: Search, physics, library) -> list[str]:
     they inform the reader and leave the loop's hypotheses and candidates as the
     dictionary makes them. None where the dictionary is no pysindy library or no variable
     has such a kind."""
-    groups = kind_groups(physics, search.u, free_run_states(physics, search.u))
+    states = free_run_states(physics, search.u)
+    groups = kind_groups(physics, search.u, states)
     combined = with_kind_terms(library, physics, groups)
     if combined is None:
         return []
     est = evidence_fit(search, physics, combined)
-    meanings = column_meanings(groups)
-    own = len(est.feature_names_) - len(meanings)  # the dictionary's columns come first
+    columns = kind_columns(groups)
+    own = len(est.feature_names_) - len(columns)  # the dictionary's columns come first
     gains = np.nan_to_num(np.asarray(est.term_gain_, float))
     # a kind function is named in the equation where it explains most
     elsewhere = gains < np.max(gains, axis=0, keepdims=True)
     gains[:, own:] = np.where(elsewhere[:, own:], 0.0, gains[:, own:])
-    names = (est.feature_names_, meanings)
-    lines = (
-        _kind_line(est.physics_.state_names[state], names, gains[row], own)
-        for row, state in enumerate(est.delta_states_)
-    )
+    slopes = declared_slopes(physics, states, search.u)
+    lines = []
+    for row, state in enumerate(est.delta_states_):
+        weights = est.term_estimate_[row, own:]
+        meanings = [
+            column_meaning(c, state, float(w), slopes[state])
+            for c, w in zip(columns, weights, strict=True)
+        ]
+        names = (est.feature_names_, meanings)
+        lines.append(_kind_line(est.physics_.state_names[state], names, gains[row], own))
     return [line for line in lines if line]
 
 

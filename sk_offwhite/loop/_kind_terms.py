@@ -11,17 +11,19 @@ seen (``LoopSettings(kind_notes=True)``, the default):
 | level | $\sqrt{\lvert h\rvert}$ | an outflow through an orifice |
 | temperature | $(T - T_{\min})^{5/4}$, $(T - T_{\min})^2$ | convection, radiation |
 | changes sign | $\lvert x\rvert$ | a loss in an effort's size, a directional damping |
-| measured state, input | $x / (s + \lvert x\rvert)$ | a saturation |
+| measured state, input | $x / (s + \lvert x\rvert)$ | a saturation, a hardening |
 
 $T_{\min}$ is the lowest temperature the declared physics simulates on the record and
 $s$ the variable's RMS there, so each function is unit-free: rescaling a variable's unit
 (or shifting a temperature's, from kelvin to degrees Celsius) rescales its column, which
-the gains do not see. The note names those
-that explain more than the dictionary's best term: a friction then shows up as an odd
-function of the velocity rather than as the sign-blind $v^2$ of a polynomial dictionary,
-a saturation as a saturation rather than as a cubic. The functions inform the reader
-only: the hypotheses, the candidates and the promoted terms stay the dictionary's, whose
-choices the functions' columns would otherwise shift.
+the gains do not see. The note names those that explain more than the dictionary's best
+term, each with what its fitted sign says (`column_meaning`): a friction then shows up
+as a friction rather than as the sign-blind $v^2$ of a polynomial dictionary, or as a
+source where its sign is no friction's; a saturation as a saturation rather than as a
+cubic, or, with the other sign, as an effect that grows faster than linearly (a
+hardening spring, a dead zone). The functions inform the reader only: the hypotheses,
+the candidates and the promoted terms stay the dictionary's, whose choices the
+functions' columns would otherwise shift.
 """
 
 from __future__ import annotations
@@ -29,6 +31,8 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from typing import NamedTuple
 
+import jax
+import jax.numpy as jnp
 import numpy as np
 
 from ..dictionaries._compiled import _xp
@@ -43,14 +47,30 @@ TEMPERATURE_POWERS = (1.25, 2.0)
 correction (the square term of $T^4 - T_a^4$ about the ambient)."""
 
 
+FIXED, DISSIPATIVE, SATURATING = "fixed", "dissipative", "saturating"
+"""How a kind function's fitted sign is read (`column_meaning`): not at all; as a loss of
+its own state (a negative weight in its own equation); as a saturation."""
+
+
 class KindGroup(NamedTuple):
     """Functions of one pysindy ``CustomLibrary``: each with its name function and what it
-    is a sign of, on the variables ``columns`` of ``v = [x; u]``."""
+    is a sign of, on the variables ``columns`` of ``v = [x; u]``; ``reading``: how the
+    fitted sign is read (`FIXED`, `DISSIPATIVE`, `SATURATING`)."""
 
     functions: tuple[Callable, ...]
     names: tuple[Callable, ...]
     meanings: tuple[str, ...]
     columns: list[int]
+    reading: str = FIXED
+
+
+class KindColumn(NamedTuple):
+    """One column of the kinds' functions: what it is a sign of, its variable (in
+    ``v = [x; u]``) and how its fitted sign is read."""
+
+    meaning: str
+    variable: int
+    reading: str
 
 
 def sign_of(x):
@@ -125,9 +145,11 @@ def kind_groups(physics, u: np.ndarray, states: np.ndarray) -> list[KindGroup]:
     groups = [
         KindGroup(
             (sign_of, signed_square), (sign_name, signed_square_name),
-            ("a Coulomb friction", "a drag"), velocities,
+            ("a Coulomb friction", "a drag"), velocities, DISSIPATIVE,
         ),
-        KindGroup((root_of,), (root_name,), ("an outflow through an orifice",), levels),
+        KindGroup(
+            (root_of,), (root_name,), ("an outflow through an orifice",), levels, DISSIPATIVE
+        ),
         KindGroup(
             (size_of,), (size_name,), ("a damping that differs with the direction",),
             [j for j in signed if j in velocities],
@@ -149,7 +171,7 @@ def _temperature_groups(kinds, values: np.ndarray) -> list[KindGroup]:
             pairs = [excess_power(float(values[:, i].min()), p) for p in TEMPERATURE_POWERS]
             functions, names = zip(*pairs, strict=True)
             meanings = ("a convective loss", "a radiative loss")
-            groups.append(KindGroup(functions, names, meanings, [i]))
+            groups.append(KindGroup(functions, names, meanings, [i], DISSIPATIVE))
     return groups
 
 
@@ -163,14 +185,63 @@ def _saturation_groups(physics, values: np.ndarray) -> list[KindGroup]:
         scale = float(np.sqrt(np.mean(values[:, j] ** 2)))
         if scale > 0 and np.isfinite(scale):
             function, name = saturation(scale)
-            groups.append(KindGroup((function,), (name,), ("a saturation",), [j]))
+            groups.append(KindGroup((function,), (name,), ("a saturation",), [j], SATURATING))
     return groups
 
 
-def column_meanings(groups: Sequence[KindGroup]) -> list[str]:
-    """What each column of the groups' libraries is a sign of, in `with_kind_terms`' column
-    order (a ``CustomLibrary`` lists its functions' columns one function after the other)."""
-    return [meaning for group in groups for meaning in group.meanings for _ in group.columns]
+def kind_columns(groups: Sequence[KindGroup]) -> list[KindColumn]:
+    """The `KindColumn` of each column of the groups' libraries, in `with_kind_terms`'
+    column order (a ``CustomLibrary`` lists its functions' columns one function after the
+    other)."""
+    return [
+        KindColumn(meaning, variable, group.reading)
+        for group in groups
+        for meaning in group.meanings
+        for variable in group.columns
+    ]
+
+
+def column_meaning(column: KindColumn, equation: int, weight: float, slopes) -> str:
+    """What ``column``, of fitted (linearised) ``weight`` in the equation of state
+    ``equation`` whose declared slopes (`declared_slopes`) are ``slopes``, is a sign of."""
+    if column.reading == SATURATING:
+        return saturation_meaning(weight, float(slopes[column.variable]))
+    if column.reading == DISSIPATIVE and column.variable == equation and weight > 0:
+        return f"of the sign of a source, not of {column.meaning}"
+    return column.meaning
+
+
+def saturation_meaning(weight: float, slope: float) -> str:
+    r"""What a saturation column $x/(s + |x|)$ of fitted (linearised) ``weight`` says of
+    the equation whose declared increment changes by ``slope`` per unit of $x$.
+
+    Beyond its linear part the column is $\approx -x|x|/s^2$, against $x$: with a weight of
+    the declared slope's sign it takes from the declared effect of $x$ (the effect levels
+    off: a saturation), with the other sign it adds to it (the effect grows faster than
+    linearly: a hardening). Where the declared equation does not depend on $x$ the column
+    is a law of $x$ that levels off."""
+    if slope == 0 or not np.isfinite(slope):
+        return "a law that levels off"
+    return "a saturation" if weight * slope > 0 else "an effect that grows faster than linearly"
+
+
+def declared_slopes(physics, states: np.ndarray, u: np.ndarray) -> np.ndarray:
+    r"""$\partial (x^+_i - x_i) / \partial v_j$ of the declared step at its parameters'
+    values, averaged over the run (``states``, ``u``): the declared effect of each
+    variable $v = [x; u]$ on each state's increment, shape ``(n_declared, n_declared +
+    n_inputs)``."""
+    n = physics.n_states
+    theta = dict(zip(physics.parameter_names, physics.parameter_values(), strict=True))
+    with jax.enable_x64(True):
+
+        def increment(v):
+            return physics.step(v[:n], v[n:], theta)[:n] - v[:n]
+
+        values = jnp.column_stack([jnp.asarray(states)[:, :n], jnp.asarray(u, float)])
+        slopes = np.asarray(jax.vmap(jax.jacfwd(increment))(values))
+    n_declared = n_declared_states(physics)
+    columns = list(range(n_declared)) + list(range(n, n + physics.n_inputs))
+    return np.mean(slopes, axis=0)[:n_declared][:, columns]
 
 
 def with_kind_terms(library, physics, groups: Sequence[KindGroup]):
