@@ -33,8 +33,8 @@ from sk_offwhite.loop._search import Search
 DT = 0.01
 
 
-def drive(state_kinds=("position", "velocity")) -> PhysicsModel:
-    return driven_mass(2.0, 4.0, state_kinds=state_kinds)
+def drive(state_kinds=("position", "velocity"), hold="zero") -> PhysicsModel:
+    return driven_mass(2.0, 4.0, state_kinds=state_kinds, hold=hold)
 
 
 def group_names(physics, u, states) -> list[tuple[list[str], list[int]]]:
@@ -232,9 +232,10 @@ def test_a_fitted_sign_reads_as_a_saturation_a_hardening_or_a_source():
 def test_the_declared_slopes_are_the_step_s_own():
     """The drive at 100 Hz: q' = v, v' = (tau - Fv v) / M, one RK4 step."""
     states = np.zeros((3, 2))
-    slopes = declared_slopes(drive(), states, np.zeros((3, 1)))
-    np.testing.assert_allclose(slopes[1], [0.0, -DT * 2.0, DT / 2.0], rtol=0.02)
-    assert slopes[0, 1] == pytest.approx(DT, rel=0.02)
+    for hold in ("zero", "linear"):
+        slopes = declared_slopes(drive(hold=hold), states, np.zeros((3, 1)))
+        np.testing.assert_allclose(slopes[1], [0.0, -DT * 2.0, DT / 2.0], rtol=0.02)
+        assert slopes[0, 1] == pytest.approx(DT, rel=0.02)
 
 
 def test_a_hardening_spring_is_read_as_an_effect_that_grows_faster_than_linearly():

@@ -38,7 +38,7 @@ import numpy as np
 from ..dictionaries._compiled import _xp
 from ..effects._hidden import n_declared_states
 from ..model._kinds import LEVEL_KINDS, VELOCITY_KINDS, physical_kinds
-from ..model._physics import measured_states
+from ..model._physics import measured_states, reads_next_input
 
 __all__ = ["with_kind_terms"]
 
@@ -230,12 +230,12 @@ def declared_slopes(physics, states: np.ndarray, u: np.ndarray) -> np.ndarray:
     values, averaged over the run (``states``, ``u``): the declared effect of each
     variable $v = [x; u]$ on each state's increment, shape ``(n_declared, n_declared +
     n_inputs)``."""
-    n = physics.n_states
+    n, held = physics.n_states, 2 if reads_next_input(physics) else 1
     theta = dict(zip(physics.parameter_names, physics.parameter_values(), strict=True))
     with jax.enable_x64(True):
 
-        def increment(v):
-            return physics.step(v[:n], v[n:], theta)[:n] - v[:n]
+        def increment(v):  # a first-order hold reads the input of the next sample too
+            return physics.step(v[:n], jnp.tile(v[n:], held), theta)[:n] - v[:n]
 
         values = jnp.column_stack([jnp.asarray(states)[:, :n], jnp.asarray(u, float)])
         slopes = np.asarray(jax.vmap(jax.jacfwd(increment))(values))
