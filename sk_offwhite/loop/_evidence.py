@@ -142,32 +142,36 @@ def kind_notes(search: Search, physics, library) -> list[str]:
     """A line per equation on the functions of the variables' kinds (`kind_groups`, on
     ``physics``' free run) that would explain more than the dictionary's best term there,
     each in the equation where it explains most, with the share of the declared physics'
-    cost each removes alone and what it is a sign of. Read on a fit of their own, so that
-    they inform the reader and leave the loop's hypotheses and candidates as the
-    dictionary makes them. None where the dictionary is no pysindy library or no variable
-    has such a kind."""
+    cost each removes alone and what its fitted sign says (`column_meaning`). Read on a
+    fit of their own, so that they inform the reader and leave the loop's hypotheses and
+    candidates as the dictionary makes them. None where the dictionary is no pysindy
+    library or no variable has such a kind."""
     states = free_run_states(physics, search.u)
     groups = kind_groups(physics, search.u, states)
     combined = with_kind_terms(library, physics, groups)
     if combined is None:
         return []
     est = evidence_fit(search, physics, combined)
-    columns = kind_columns(groups)
+    return _kind_lines(est, kind_columns(groups), declared_slopes(physics, states, search.u))
+
+
+def _kind_lines(est, columns, slopes: np.ndarray) -> list[str]:
+    """The notes of the evidence fit ``est`` whose last columns are the kinds' ``columns``,
+    the declared physics' slopes (`declared_slopes`) reading their signs."""
     own = len(est.feature_names_) - len(columns)  # the dictionary's columns come first
     gains = np.nan_to_num(np.asarray(est.term_gain_, float))
     # a kind function is named in the equation where it explains most
     elsewhere = gains < np.max(gains, axis=0, keepdims=True)
     gains[:, own:] = np.where(elsewhere[:, own:], 0.0, gains[:, own:])
-    slopes = declared_slopes(physics, states, search.u)
     lines = []
     for row, state in enumerate(est.delta_states_):
         weights = est.term_estimate_[row, own:]
         meanings = [
-            column_meaning(c, state, float(w), slopes[state])
-            for c, w in zip(columns, weights, strict=True)
+            column_meaning(column, state, float(weight), slopes[state])
+            for column, weight in zip(columns, weights, strict=True)
         ]
-        names = (est.feature_names_, meanings)
-        lines.append(_kind_line(est.physics_.state_names[state], names, gains[row], own))
+        equation = est.physics_.state_names[state]
+        lines.append(_kind_line(equation, est.feature_names_, meanings, gains[row], own))
     return [line for line in lines if line]
 
 
@@ -180,11 +184,9 @@ def free_run_states(physics, u) -> np.ndarray:
         return free_run_record(model, params, physics.x0, u)[0]
 
 
-def _kind_line(equation: str, names, gains: np.ndarray, own: int) -> str:
-    """The note for one equation, or ``""`` when no kind function (columns from ``own``)
-    beats the dictionary's best term; ``names``: the columns' names and what each kind
-    function is a sign of."""
-    names, meanings = names
+def _kind_line(equation: str, names, meanings, gains: np.ndarray, own: int) -> str:
+    """The note for one equation, or ``""`` when no kind function (columns from ``own``,
+    each with what it says in ``meanings``) beats the dictionary's best term."""
     best = int(np.argmax(gains[:own]))
     better = [j for j in np.argsort(-gains[own:]) + own if gains[j] > gains[best]]
     if not better:
