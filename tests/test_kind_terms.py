@@ -12,7 +12,11 @@ import pytest
 from conftest import driven_mass, driven_record
 
 from sk_offwhite import Friction, PhysicsModel, RidgeBasis, augment
-from sk_offwhite.datasets import make_convective_block, make_duffing_oscillator
+from sk_offwhite.datasets import (
+    make_convective_block,
+    make_duffing_oscillator,
+    make_lagged_drive,
+)
 from sk_offwhite.dictionaries import compile_basis
 from sk_offwhite.loop import LoopSettings
 from sk_offwhite.loop._candidates import promoted_terms
@@ -134,6 +138,20 @@ def test_no_note_without_the_setting():
     search = Search(u, z, LoopSettings(n_jobs=1, kind_notes=False))
     read_kind_notes(search, drive(), ps.PolynomialLibrary(degree=2))
     assert search.notes == [] and search.failures == []
+
+
+def test_a_function_that_explains_little_is_not_noted():
+    """A drive whose command reaches it through a lag: the drag shape beats the
+    dictionary's terms at 2 % of the declared physics' cost, under ``min_gain`` (5 %):
+    the note would be noise."""
+    data = make_lagged_drive(random_state=0)
+    notes = {}
+    for floor in (0.0, LoopSettings.min_gain):
+        search = Search(data.u, data.z, LoopSettings(n_jobs=1, min_gain=floor))
+        read_kind_notes(search, data.physics, ps.PolynomialLibrary(degree=2))
+        notes[floor] = [note for note in search.notes if note.startswith("In the omega")]
+    assert len(notes[0.0]) == 1 and max(kind_shares(notes[0.0][0]).values()) < 5
+    assert notes[LoopSettings.min_gain] == []
 
 
 def test_no_note_where_no_kind_function_beats_the_dictionary():

@@ -142,26 +142,29 @@ def kind_notes(search: Search, physics, library) -> list[str]:
     """A line per equation on the functions of the variables' kinds (`kind_groups`, on
     ``physics``' free run) that would explain more than the dictionary's best term there,
     each in the equation where it explains most, with the share of the declared physics'
-    cost each removes alone and what its fitted sign says (`column_meaning`). Read on a
-    fit of their own, so that they inform the reader and leave the loop's hypotheses and
-    candidates as the dictionary makes them. None where the dictionary is no pysindy
-    library or no variable has such a kind."""
+    cost each removes alone (at least ``min_gain``, the share a step of the loop must
+    gain) and what its fitted sign says (`column_meaning`). Read on a fit of their own,
+    so that they inform the reader and leave the loop's hypotheses and candidates as the
+    dictionary makes them. None where the dictionary is no pysindy library or no
+    variable has such a kind."""
     states = free_run_states(physics, search.u)
     groups = kind_groups(physics, search.u, states)
     combined = with_kind_terms(library, physics, groups)
     if combined is None:
         return []
     est = evidence_fit(search, physics, combined)
-    return _kind_lines(est, kind_columns(groups), declared_slopes(physics, states, search.u))
+    slopes = declared_slopes(physics, states, search.u)
+    return _kind_lines(est, kind_columns(groups), slopes, search.settings.min_gain)
 
 
-def _kind_lines(est, columns, slopes: np.ndarray) -> list[str]:
+def _kind_lines(est, columns, slopes: np.ndarray, floor: float) -> list[str]:
     """The notes of the evidence fit ``est`` whose last columns are the kinds' ``columns``,
-    the declared physics' slopes (`declared_slopes`) reading their signs."""
+    the declared physics' slopes (`declared_slopes`) reading their signs; a function that
+    removes less than ``floor`` of the declared physics' cost is not named."""
     own = len(est.feature_names_) - len(columns)  # the dictionary's columns come first
     gains = np.nan_to_num(np.asarray(est.term_gain_, float))
-    # a kind function is named in the equation where it explains most
-    elsewhere = gains < np.max(gains, axis=0, keepdims=True)
+    # a kind function is named in the equation where it explains most, and only above floor
+    elsewhere = (gains < np.max(gains, axis=0, keepdims=True)) | (gains < floor)
     gains[:, own:] = np.where(elsewhere[:, own:], 0.0, gains[:, own:])
     lines = []
     for row, state in enumerate(est.delta_states_):

@@ -148,8 +148,9 @@ class LoopSettings:
         each variable (a velocity's sign and $v|v|$, a level's square root, powers of a
         temperature's excess, the size of a variable that changes sign, a saturation of a
         measured state or an input), and note those that explain more than the
-        dictionary's best term. They inform the reader and change no choice; ``False``
-        skips that fit (a program of its own to compile).
+        dictionary's best term and at least ``min_gain`` of the declared physics' cost,
+        with what each one's fitted sign says. They inform the reader and change no
+        choice; ``False`` skips that fit (a program of its own to compile).
     """
 
     gammas: tuple[float, ...] | None = None
