@@ -1,6 +1,7 @@
 """The evidence's functions by declared kind: which variables get which, how they join the
-user's dictionary, and what they name on plants with a known missing law (a friction, a
-saturating actuator, a convective loss)."""
+user's dictionary, what they name on plants with a known missing law (a friction, a
+saturating actuator, a convective loss, a hardening spring) and how their fitted signs
+read."""
 
 import re
 
@@ -178,7 +179,7 @@ def kind_shares(note: str) -> dict[str, float]:
 
 @pytest.fixture(scope="module")
 def saturated_record():
-    truth = drive()
+    """The drive of `saturated_drive_rhs`, its output measured with noise."""
     settings = dict(state_names=("q", "v"), input_names=("tau",), n_states=2, n_inputs=1)
     truth = PhysicsModel.from_ode(
         saturated_drive_rhs, DT, output=0, parameters={"M": 2.0, "Fv": 4.0}, **settings
