@@ -21,7 +21,6 @@ from sk_offwhite.datasets import (
 from sk_offwhite.dictionaries import compile_basis
 from sk_offwhite.loop import LoopSettings
 from sk_offwhite.loop._candidates import promoted_terms
-from sk_offwhite.loop._cv import structure_cv
 from sk_offwhite.loop._evidence import read_evidence, read_kind_notes
 from sk_offwhite.loop._kind_terms import (
     DISSIPATIVE,
@@ -220,17 +219,6 @@ def test_a_convective_loss_shows_up_as_a_power_of_the_temperature_excess():
     }
     powers, others = list(shares.values())[:2], list(shares.values())[2:]
     assert min(powers) >= 10 and min(powers) > max(others, default=0)
-
-
-def test_the_declared_cross_validation_runs_the_kinds_note_meanwhile_and_scores_the_same():
-    """The loop reads the kinds' note while the folds of the declared physics are fitted:
-    called once, it changes nothing of the score."""
-    u, z = friction_record(n=300)
-    search = Search(u, z, LoopSettings(n_jobs=1, n_folds=2, max_iter=30))
-    calls = []
-    alone = structure_cv(search, drive())
-    assert structure_cv(search, drive(), lambda: calls.append(1)) == alone
-    assert calls == [1]
 
 
 def test_a_fitted_sign_reads_as_a_saturation_a_hardening_or_a_source():

@@ -11,7 +11,6 @@ warnings are issued again here (`sk_offwhite.runtime._parallel`).
 from __future__ import annotations
 
 import warnings
-from collections.abc import Callable
 
 import numpy as np
 from sklearn.base import clone
@@ -70,23 +69,19 @@ def cross_validated_rmse(physics, u, z, settings: LoopSettings | None = None) ->
     return structure_cv(search, physics)
 
 
-def structure_cv(search: Search, physics, meanwhile: Callable[[], object] | None = None) -> float:
+def structure_cv(search: Search, physics) -> float:
     """[`cross_validated_rmse`][sk_offwhite.loop.cross_validated_rmse] of ``physics`` on the
-    search's record; ``meanwhile`` as for `estimator_cv`."""
-    return estimator_cv(search, search.estimator(physics, cv=True), meanwhile)
+    search's record."""
+    return estimator_cv(search, search.estimator(physics, cv=True))
 
 
-def estimator_cv(search: Search, est, meanwhile: Callable[[], object] | None = None) -> float:
+def estimator_cv(search: Search, est) -> float:
     """Mean held-out simulation RMSE of ``est`` (cloned for each fold) over the folds, the
-    folds fitted by ``n_jobs`` processes; ``meanwhile()``, when given, runs in this process
-    while worker processes fit the folds (after them with one process)."""
+    folds fitted by ``n_jobs`` processes."""
     u, z, window = search.u, search.z, search.settings.init_window
     splits = held_out_splits(search.settings, len(u))
     arguments = [(clone(est), u, z, train, test, window) for train, test in splits]
-    folds = launch(_fold_rmse, arguments, *search.processes())
-    if meanwhile is not None:
-        meanwhile()
-    return float(np.mean(gather(folds)))
+    return float(np.mean(gather(launch(_fold_rmse, arguments, *search.processes()))))
 
 
 def _fold_rmse(est, u, z, train, test, init_window: int) -> float:

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import copy
 import warnings
-from functools import partial
 from numbers import Integral
 
 import numpy as np
@@ -142,11 +141,12 @@ def _search_from(search: Search, physics, library, given, declared) -> LoopResul
     settings, notes = search.settings, []
     baseline, start, run, reset = declared
     with search.stage("declared physics"):
-        declared_cv = structure_cv(search, start, partial(read_kind_notes, search, start, library))
+        declared_cv = structure_cv(search, start)
         notes += reset_notes(reset, physics) + unfit_notes(baseline)
         facts = record_facts(physics, search.z, run)
     with search.stage("evidence"):
         evidence, hypotheses = read_evidence(search, start, library)
+        read_kind_notes(search, start, library)
         snapshot = copy.copy(evidence)  # the physics-only fit, kept when the path refits it
     fits = {"baseline": (baseline, None, declared_cv)}
     readings = []

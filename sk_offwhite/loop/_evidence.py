@@ -12,8 +12,7 @@ r"""The first stages of the loop: the declared physics fitted, and what it canno
    tries first for each variable (`with_kind_terms`: a velocity's sign and $v|v|$, a
    level's square root, powers of a temperature's excess, the size of a variable that
    changes sign, a saturation of a measured state or an input) are read too, on a fit of
-   their own (while worker processes cross-validate the declared physics): a note names
-   those that explain more than the dictionary's best term.
+   their own: a note names those that explain more than the dictionary's best term.
 """
 
 from __future__ import annotations
