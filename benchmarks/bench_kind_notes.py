@@ -79,9 +79,9 @@ def read_notes(data) -> tuple[Search, float]:
     """The search whose ``notes`` hold the kinds' notes of ``data``'s declared physics
     (fitted first), and the seconds the note took."""
     search = Search(data.u, data.z, LoopSettings(n_jobs=1))
-    start = fit_declared(search, data.physics)[1]
+    _, start, run, _ = fit_declared(search, data.physics)
     began = time.perf_counter()
-    read_kind_notes(search, start, ps.PolynomialLibrary(degree=2))
+    read_kind_notes(search, start, ps.PolynomialLibrary(degree=2), run.states)
     return search, time.perf_counter() - began
 
 

@@ -214,14 +214,21 @@ def driven_mass(M=1.0, Fv=1.0, **options) -> PhysicsModel:
 def driven_record(truth: PhysicsModel, n: int, seed: int, x0=(0.0, 0.0)):
     """``truth`` driven from ``x0`` by a band-limited force, its output measured with noise
     of a thousandth of its spread: ``(force, z)``."""
+    rng = np.random.default_rng(seed)
+    force = np.convolve(rng.normal(0, 6.0, n + 50), np.ones(25) / 5, "same")[:n, None]
+    z = free_run(truth, force, x0)[1]
+    return force, z + rng.normal(0, 1e-3 * np.std(z), z.shape)
+
+
+def free_run(physics: PhysicsModel, u, x0=None) -> tuple[np.ndarray, np.ndarray]:
+    """``(states, outputs)`` of ``physics`` driven by ``u`` from ``x0`` (``None``: its
+    own), at its parameters' values."""
     from sk_offwhite.fitting._problem import build_model
     from sk_offwhite.simulation._rollout import simulate
 
-    rng = np.random.default_rng(seed)
-    force = np.convolve(rng.normal(0, 6.0, n + 50), np.ones(25) / 5, "same")[:n, None]
+    start = physics.x0 if x0 is None else x0
     with jax.enable_x64(True):
-        params = {"theta": jnp.asarray(truth.parameter_values())}
-        model = build_model(truth, None, ())
-        _, z, _ = simulate(model, params, jnp.asarray(x0), jnp.asarray(force))
-    z = np.asarray(z)
-    return force, z + rng.normal(0, 1e-3 * np.std(z), z.shape)
+        params = {"theta": jnp.asarray(physics.parameter_values())}
+        model = build_model(physics, None, ())
+        states, outputs, _ = simulate(model, params, jnp.asarray(start), jnp.asarray(u))
+    return np.asarray(states), np.asarray(outputs)

@@ -10,7 +10,7 @@ import jax.numpy as jnp
 import numpy as np
 import pysindy as ps
 import pytest
-from conftest import driven_mass, driven_record
+from conftest import driven_mass, driven_record, free_run
 
 from sk_offwhite import Friction, PhysicsModel, RidgeBasis, augment
 from sk_offwhite.datasets import (
@@ -39,6 +39,11 @@ DT = 0.01
 
 def drive(state_kinds=("position", "velocity"), hold="zero") -> PhysicsModel:
     return driven_mass(2.0, 4.0, state_kinds=state_kinds, hold=hold)
+
+
+def read_notes(search: Search, physics, library) -> None:
+    """`read_kind_notes` on the free run of ``physics`` at its own values."""
+    read_kind_notes(search, physics, library, free_run(physics, search.u)[0])
 
 
 def group_names(physics, u, states) -> list[tuple[list[str], list[int]]]:
@@ -120,7 +125,7 @@ def test_a_missing_friction_shows_up_as_an_odd_function_of_the_velocity_not_as_v
     u, z = friction_record()
     search = Search(u, z, LoopSettings(n_jobs=1))
     library = ps.PolynomialLibrary(degree=2)
-    read_kind_notes(search, drive(), library)
+    read_notes(search, drive(), library)
     _, hypotheses = read_evidence(search, drive(), library)
     (note,) = search.notes
     assert note.startswith("In the v equation the functions of the variables' kinds")
@@ -136,7 +141,7 @@ def test_a_missing_friction_shows_up_as_an_odd_function_of_the_velocity_not_as_v
 def test_no_note_without_the_setting():
     u, z = friction_record()
     search = Search(u, z, LoopSettings(n_jobs=1, kind_notes=False))
-    read_kind_notes(search, drive(), ps.PolynomialLibrary(degree=2))
+    read_notes(search, drive(), ps.PolynomialLibrary(degree=2))
     assert search.notes == [] and search.failures == []
 
 
@@ -148,7 +153,7 @@ def test_a_function_that_explains_little_is_not_noted():
     notes = {}
     for floor in (0.0, LoopSettings.min_gain):
         search = Search(data.u, data.z, LoopSettings(n_jobs=1, min_gain=floor))
-        read_kind_notes(search, data.physics, ps.PolynomialLibrary(degree=2))
+        read_notes(search, data.physics, ps.PolynomialLibrary(degree=2))
         notes[floor] = [note for note in search.notes if note.startswith("In the omega")]
     assert len(notes[0.0]) == 1 and max(kind_shares(notes[0.0][0]).values()) < 5
     assert notes[LoopSettings.min_gain] == []
@@ -161,7 +166,7 @@ def test_no_note_where_no_kind_function_beats_the_dictionary():
         [ps.PolynomialLibrary(degree=1), ps.CustomLibrary([sign_of], [lambda x: f"s({x})"])],
         inputs_per_library=[[0, 1, 2], [1]],
     )
-    read_kind_notes(search, drive(), with_sign)
+    read_notes(search, drive(), with_sign)
     assert not any("sign(v)" in note for note in search.notes)
 
 
@@ -196,7 +201,7 @@ def test_a_saturating_actuator_shows_up_as_a_saturation_in_any_units(saturated_r
     for unit in (1.0, 1e3):
         search = Search(u * unit, z, LoopSettings(n_jobs=1))
         physics = drive().with_parameters(M=2.0 * unit, Fv=4.0 * unit)
-        read_kind_notes(search, physics, ps.PolynomialLibrary(degree=2))
+        read_notes(search, physics, ps.PolynomialLibrary(degree=2))
         (notes[unit],) = [note for note in search.notes if note.startswith("In the v equation")]
     shares = kind_shares(notes[1.0])
     assert next(iter(shares)).startswith("tau/(")
@@ -211,7 +216,7 @@ def test_a_convective_loss_shows_up_as_a_power_of_the_temperature_excess():
     explains nothing; the powers of the temperature's excess explain what is missing."""
     data = make_convective_block(n_samples=2000, random_state=0)
     search = Search(data.u, data.z, LoopSettings(n_jobs=1))
-    read_kind_notes(search, data.physics, ps.PolynomialLibrary(degree=1))
+    read_notes(search, data.physics, ps.PolynomialLibrary(degree=1))
     (note,) = search.notes
     shares = kind_shares(note)
     assert {name for name in shares if name.startswith("(T-")} == {
@@ -248,6 +253,6 @@ def test_the_declared_slopes_are_the_step_s_own():
 def test_a_hardening_spring_is_read_as_an_effect_that_grows_faster_than_linearly():
     data = make_duffing_oscillator(n_samples=1000, random_state=0)
     search = Search(data.u, data.z, LoopSettings(n_jobs=1))
-    read_kind_notes(search, data.physics, ps.PolynomialLibrary(degree=2))
+    read_notes(search, data.physics, ps.PolynomialLibrary(degree=2))
     (note,) = [note for note in search.notes if note.startswith("In the v equation")]
     assert re.search(r"y/\(\S+\) \d+% \(an effect that grows faster than linearly\)", note)

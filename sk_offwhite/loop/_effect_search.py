@@ -146,7 +146,7 @@ def _search_from(search: Search, physics, library, given, declared) -> LoopResul
         facts = record_facts(physics, search.z, run)
     with search.stage("evidence"):
         evidence, hypotheses = read_evidence(search, start, library)
-        read_kind_notes(search, start, library)
+        read_kind_notes(search, start, library, run.states)
         snapshot = copy.copy(evidence)  # the physics-only fit, kept when the path refits it
     fits = {"baseline": (baseline, None, declared_cv)}
     readings = []

@@ -19,18 +19,14 @@ from __future__ import annotations
 
 import warnings
 
-import jax
 import numpy as np
 
 from .._estimator import GreyBoxSparseRegressor
 from .._validation import check_record
 from ..certify import identifiability
 from ..diagnose import analyse_residuals, output_jumps, range_violations
-from ..fitting._problem import build_model
 from ..model._equations import output_name
-from ..runtime._backend import to_device
 from ..runtime._parallel import gather, start_workers
-from ..simulation._rollout import free_run_record
 from ._fits import fit_continued, warm_physics
 from ._hypotheses import evidence_hypotheses, form_hypotheses
 from ._kind_terms import (
@@ -129,24 +125,25 @@ def read_evidence(search: Search, physics, library):
     return evidence, evidence_hypotheses(evidence, run, search.u, min_share=share)
 
 
-def read_kind_notes(search: Search, physics, library) -> None:
+def read_kind_notes(search: Search, physics, library, states) -> None:
     """With the setting ``kind_notes``, the note on the functions of the variables' kinds
-    (`kind_notes`) joins ``search.notes`` (a failed fit: a line of ``search.failures``)."""
+    (`kind_notes` on ``states``, ``physics``' free run) joins ``search.notes`` (a failed
+    fit: a line of ``search.failures``)."""
     if search.settings.kind_notes:
-        notes = search.attempt("evidence of the kinds", kind_notes, search, physics, library)
+        label, function = "evidence of the kinds", kind_notes
+        notes = search.attempt(label, function, search, physics, library, states)
         search.notes.extend(notes or [])
 
 
-def kind_notes(search: Search, physics, library) -> list[str]:
+def kind_notes(search: Search, physics, library, states) -> list[str]:
     """A line per equation on the functions of the variables' kinds (`kind_groups`, on
-    ``physics``' free run) that would explain more than the dictionary's best term there,
+    ``states``) that would explain more than the dictionary's best term there,
     each in the equation where it explains most, with the share of the declared physics'
     cost each removes alone (at least ``min_gain``, the share a step of the loop must
     gain) and what its fitted sign says (`column_meaning`). Read on a fit of their own,
     so that they inform the reader and leave the loop's hypotheses and candidates as the
     dictionary makes them. None where the dictionary is no pysindy library or no
     variable has such a kind."""
-    states = free_run_states(physics, search.u)
     groups = kind_groups(physics, search.u, states)
     combined = with_kind_terms(library, physics, groups)
     if combined is None:
@@ -175,15 +172,6 @@ def _kind_lines(est, columns, slopes: np.ndarray, floor: float) -> list[str]:
         equation = est.physics_.state_names[state]
         lines.append(_kind_line(equation, est.feature_names_, meanings, gains[row], own))
     return [line for line in lines if line]
-
-
-def free_run_states(physics, u) -> np.ndarray:
-    """The states of ``physics``' free run on ``u`` from its ``x0``, at its parameters'
-    values."""
-    with jax.enable_x64(True):
-        model = build_model(physics, None, ())
-        params = {"theta": to_device(physics.parameter_values())}
-        return free_run_record(model, params, physics.x0, u)[0]
 
 
 def _kind_line(equation: str, names, meanings, gains: np.ndarray, own: int) -> str:
