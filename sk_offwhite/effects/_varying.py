@@ -22,7 +22,7 @@ from __future__ import annotations
 import jax.numpy as jnp
 import numpy as np
 
-from ..model._physics import Parameter
+from ..model._physics import Parameter, value_of
 from ._base import Effect, _positive
 
 __all__ = ["VaryingParameter"]
@@ -126,23 +126,23 @@ class VaryingParameter(Effect):
         if self.family == "rational":
             return False
         if self.family == "power":
-            return _number((values or {}).get(f"{self.name}_exponent", self.exponent)) > 0
+            return value_of((values or {}).get(f"{self.name}_exponent", self.exponent)) > 0
         return self.rising
 
     def formula(self, variable_name: str, values=None) -> str:
         """The law with its numbers, e.g. ``k(q) = k·(1 + (q/0.04)²)``."""
         values = values or {}
-        scale = _number(values.get(f"{self.name}_scale", self.scale))
+        scale = value_of(values.get(f"{self.name}_scale", self.scale))
         v, p = variable_name, f"{self.parameter}({variable_name})"
         value = values.get(self.parameter)
-        theta = self.parameter if value is None else f"{_number(value):.4g}"
+        theta = self.parameter if value is None else f"{value_of(value):.4g}"
         ratio = f"({v}/{scale:.4g})"
         if self.family == "polynomial":
             return f"{p} = {theta}·(1 {'+' if self.rising else '-'} {ratio}²)"
         if self.family == "rational":
             return f"{p} = {theta}/(1 + {ratio}²)"
         if self.family == "power":
-            exponent = _number(values.get(f"{self.name}_exponent", self.exponent))
+            exponent = value_of(values.get(f"{self.name}_exponent", self.exponent))
             return f"{p} = {theta}·|{ratio}|^{exponent:.3g}"
         return f"{p} = {theta}·exp({'' if self.rising else '-'}{v}/{scale:.4g})"
 
@@ -157,8 +157,3 @@ class VaryingParameter(Effect):
             f"the declared constant {self.parameter} depends on {variable}: "
             f"{self.formula(variable, values)} ({self.sign(values)})"
         )
-
-
-def _number(value) -> float:
-    """A float of a fitted value, a `Parameter` or a number."""
-    return float(getattr(value, "value", value))

@@ -19,6 +19,7 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from ..effects import DictionaryTerm, DirectionalDamping
+from ..model._physics import value_of
 from ._energy import directional_dampings
 
 __all__ = [
@@ -35,19 +36,15 @@ r"""A declared parameter that moves by more than this factor from its declared f
 ($|\theta/\theta_0| > 10$ or $< 1/10$) makes the set a stand-in."""
 
 
-def _value(parameter) -> float:
-    return float(getattr(parameter, "value", parameter))
-
-
 def stand_in_reasons(declared: Mapping, fitted: Mapping) -> list[str]:
     """Why ``fitted`` is not physical: each declared parameter it flips in sign or moves
     beyond `STAND_IN_FACTOR` from its ``declared`` fit (empty: physical)."""
     reasons = []
     for name, parameter in declared.items():
-        before = _value(parameter)
+        before = value_of(parameter)
         if name not in fitted or before == 0 or not np.isfinite(before):
             continue
-        after = _value(fitted[name])
+        after = value_of(fitted[name])
         ratio = after / before
         if ratio < 0:
             reasons.append(f"{name} changes sign ({before:.4g} → {after:.4g})")
@@ -105,7 +102,7 @@ def direction_reasons(physics, effects, fitted: Mapping) -> list[str]:
     """Why a set's directional damping is not physical: it leaves a direction's damping
     negative (an energy source), the declared damping taken at the declared initial state
     (`directional_dampings`, with the ``fitted`` values; empty: physical)."""
-    values = {name: _value(parameter) for name, parameter in fitted.items()}
+    values = {name: value_of(parameter) for name, parameter in fitted.items()}
     reasons = []
     for effect in (e for e in effects if isinstance(e, DirectionalDamping)):
         pair = directional_dampings(effect, physics, values)

@@ -76,6 +76,11 @@ class Parameter:
             raise ValueError("Parameter relaxable=True applies to a fixed parameter (fixed=True).")
 
 
+def value_of(parameter) -> float:
+    """The number a `Parameter` or a plain number holds, as a float."""
+    return float(getattr(parameter, "value", parameter))
+
+
 def _check_flag(argument: str, value) -> bool:
     """``value`` as a bool: ``True``, ``False``, a NumPy boolean or the integers 0 and 1;
     anything else (a string such as ``"yes"``) is a ``TypeError`` naming ``argument``."""
