@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import weakref
+
 import jax
 import numpy as np
 from sklearn.utils import check_array
@@ -156,6 +158,27 @@ def _traceable(name: str, fun, *args, evaluate: bool = False):
         ) from error
 
 
+def _check_hashable(name: str, fun) -> None:
+    """Refuse a function object without a hash: its compiled programs are kept per function."""
+    try:
+        hash(fun)
+    except TypeError:
+        raise TypeError(
+            f"{name} must be hashable (a function, or an object that defines __hash__ and "
+            "__eq__): the programs compiled from it are kept per function."
+        ) from None
+
+
+def _cacheable(fun):
+    """``fun`` itself where `jax.jit` can keep its program between calls (a physics checked
+    again compiles nothing), else a wrapper of it (an object with no weak reference)."""
+    try:
+        weakref.ref(fun)
+    except TypeError:
+        return lambda *args: fun(*args)
+    return fun
+
+
 def _returned_type(fun):
     """``fun`` wrapped to record the type of what it returns while it is traced (a JAX
     array, or what the user's code built: a Python float, a dict, ...), and that record."""
@@ -212,9 +235,11 @@ def check_physics(physics: PhysicsModel, n_inputs: int, n_outputs: int, u0) -> N
         if fun is not None
     ]
     for name, fun, expected in checks + constraints:
+        _check_hashable(name, fun)
         recorded, returned = _returned_type(fun)
-        value = _traceable(name, recorded, x0, u0, theta, evaluate=True)
+        _traceable(name, recorded, x0, u0, theta)
         _check_kind(name, returned[0], where)
+        value = _traceable(name, _cacheable(fun), x0, u0, theta, evaluate=True)
         if expected is not None:
             _check_result(name, value, expected, where)
         _check_finite(name, np.asarray(value), where)

@@ -141,3 +141,23 @@ def test_a_first_fit_compiles_no_single_operation_programs():
     single = {"jit(stage)", "jit(convert_element_type)", "jit(broadcast_in_dim)", "jit(sqrt)"}
     assert not single & set(names), names
     assert len(names) <= 6, names
+
+
+RECOMPILED = (
+    "import json, logging, io, jax, sk_offwhite;"
+    "from sk_offwhite.datasets import make_cascaded_tanks;"
+    "d = make_cascaded_tanks(n_samples=200, random_state=0);"
+    "sk_offwhite.GreyBoxSparseRegressor(d.physics, max_iter=20).fit(d.u, d.z);"
+    "log = io.StringIO(); logging.getLogger('jax').addHandler(logging.StreamHandler(log));"
+    "jax.config.update('jax_log_compiles', True);"
+    "sk_offwhite.GreyBoxSparseRegressor(d.physics, max_iter=20).fit(d.u_val, d.z_val);"
+    "print(json.dumps([line for line in log.getvalue().splitlines()"
+    " if line.startswith('Finished XLA compilation')]))"
+)
+"""Prints the XLA programs a second fit of the same physics, on a record of the same length,
+compiles (fresh process)."""
+
+
+def test_a_second_fit_of_the_same_physics_compiles_nothing():
+    """The checks of the physics at its initial guess included (one program per physics)."""
+    assert json.loads(_run(RECOMPILED, None)) == []

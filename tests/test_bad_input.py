@@ -87,6 +87,29 @@ def test_step_that_jax_cannot_trace_is_named(data):
         GreyBoxSparseRegressor(_physics(numpy_step)).fit(*data)
 
 
+class _SlottedStep:
+    """A step object with no weak reference, which `jax.jit` cannot take as its function."""
+
+    __slots__ = ()
+
+    def __call__(self, x, u, theta):
+        return tanks_step(x, u, theta)
+
+
+class _UnhashableStep(_SlottedStep):
+    __hash__ = None
+
+
+def test_a_step_object_without_a_weak_reference_is_checked_and_fitted(data):
+    est = GreyBoxSparseRegressor(_physics(_SlottedStep()), max_iter=5).fit(*data)
+    assert np.all(np.isfinite(est.predict(data[0])))
+
+
+def test_an_unhashable_step_object_is_named(data):
+    with pytest.raises(TypeError, match="physics.step must be hashable"):
+        GreyBoxSparseRegressor(_physics(_UnhashableStep())).fit(*data)
+
+
 def test_horizon_longer_than_the_data(data):
     with pytest.raises(ValueError, match=r"horizon=500 is longer than the data \(200 samples\)"):
         _fit(*data, horizon=500)
