@@ -5,6 +5,7 @@ The shipped files are compared with the original ``.mat`` files when those are p
 ``emps/`` and ``silverbox/`` subfolders); those tests are skipped otherwise.
 """
 
+import json
 import math
 import os
 import socket
@@ -290,3 +291,8 @@ def test_quick_example_runs(script, tmp_path):
     result = subprocess.run(command, cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert result.returncode == 0, result.stderr[-3000:]
     assert "wall time" in result.stdout and (tmp_path / "report.md").is_file()
+    if script == "emps_loop.py":  # the benchmark's reference law, scored as the loop's models
+        rows = json.loads((tmp_path / "results.json").read_text())["rows"]
+        reference = [r for r in rows if r["model"] == "reference law, fitted"]
+        assert {r["record"] for r in reference} == {"estimation", "validation"}
+        assert all(np.isfinite(r["rmse"]) and r["rmse"] > 0 for r in reference)
