@@ -127,37 +127,30 @@ COMPILED = (
     "d = make_cascaded_tanks(n_samples=200, random_state=0);"
     "log = io.StringIO(); logging.getLogger('jax').addHandler(logging.StreamHandler(log));"
     "jax.config.update('jax_log_compiles', True);"
+    "names = lambda: [line.split(' of ')[1].split(' ')[0] for line in log.getvalue()"
+    ".splitlines() if line.startswith('Finished XLA compilation')];"
     "est = sk_offwhite.GreyBoxSparseRegressor(d.physics, max_iter=20).fit(d.u, d.z);"
-    "est.predict(d.u);"
-    "print(json.dumps([line.split(' of ')[1].split(' ')[0] for line in log.getvalue()"
-    ".splitlines() if line.startswith('Finished XLA compilation')]))"
+    "est.predict(d.u); first = names(); log.seek(0); log.truncate();"
+    "sk_offwhite.GreyBoxSparseRegressor(d.physics, max_iter=20).fit(d.u_val, d.z_val);"
+    "print(json.dumps([first, names()]))"
 )
-"""Prints the names of the XLA programs that a first fit and predict compile (fresh process)."""
+"""Prints the names of the XLA programs that a first fit and predict compile, then those a
+second fit of the same physics on a record of the same length compiles (fresh process)."""
 
 
-def test_a_first_fit_compiles_no_single_operation_programs():
-    names = json.loads(_run(COMPILED, None))
+@pytest.fixture(scope="module")
+def compiled() -> list[list[str]]:
+    return json.loads(_run(COMPILED, None))
+
+
+def test_a_first_fit_compiles_no_single_operation_programs(compiled):
+    names = compiled[0]
     assert {"jit(_run_on_device)", "jit(free_run)"} <= set(names), names
     single = {"jit(stage)", "jit(convert_element_type)", "jit(broadcast_in_dim)", "jit(sqrt)"}
     assert not single & set(names), names
     assert len(names) <= 6, names
 
 
-RECOMPILED = (
-    "import json, logging, io, jax, sk_offwhite;"
-    "from sk_offwhite.datasets import make_cascaded_tanks;"
-    "d = make_cascaded_tanks(n_samples=200, random_state=0);"
-    "sk_offwhite.GreyBoxSparseRegressor(d.physics, max_iter=20).fit(d.u, d.z);"
-    "log = io.StringIO(); logging.getLogger('jax').addHandler(logging.StreamHandler(log));"
-    "jax.config.update('jax_log_compiles', True);"
-    "sk_offwhite.GreyBoxSparseRegressor(d.physics, max_iter=20).fit(d.u_val, d.z_val);"
-    "print(json.dumps([line for line in log.getvalue().splitlines()"
-    " if line.startswith('Finished XLA compilation')]))"
-)
-"""Prints the XLA programs a second fit of the same physics, on a record of the same length,
-compiles (fresh process)."""
-
-
-def test_a_second_fit_of_the_same_physics_compiles_nothing():
+def test_a_second_fit_of_the_same_physics_compiles_nothing(compiled):
     """The checks of the physics at its initial guess included (one program per physics)."""
-    assert json.loads(_run(RECOMPILED, None)) == []
+    assert compiled[1] == []

@@ -6,6 +6,9 @@ a saturation of the power with the hard-limit shape (not the soft ``tanh`` one, 
 data argue against), recover the limit and the declared parameters within 2 %, and bring
 the validation error down to the sensor's noise. Temperatures are absolute (about 305-317
 K), so every scale the loop derives from the data works on an offset record.
+
+A study of the whole loop (about a minute): it runs with ``--run-slow``. In the default run
+the diode (test_loop_thresholds.py) stands for the loops that must pick a threshold's shape.
 """
 
 import numpy as np
@@ -15,6 +18,8 @@ from sk_offwhite import InputSaturation
 from sk_offwhite.datasets import make_heated_block
 from sk_offwhite.datasets._thermal import _heated_block_physics
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
+
+pytestmark = pytest.mark.slow
 
 SETTINGS = LoopSettings(
     n_folds=2, max_iter=100, fit_delta=False, max_candidates=6, max_effects=1
@@ -60,7 +65,6 @@ def test_validation_error_falls_to_the_sensor_noise(run):
     assert result.chosen == "final"
 
 
-@pytest.mark.slow
 def test_the_same_model_in_other_units(run):
     """Degrees Celsius (an offset of the output) and kilowatts (a scale of the input and of
     two parameters), both at once (one loop, not two: each alone was its own 50 s loop):

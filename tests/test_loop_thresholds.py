@@ -19,7 +19,9 @@ from sk_offwhite import DifferenceDeadZone
 from sk_offwhite.datasets import make_clearance_coupling, make_diode_rc
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 
-SETTINGS = LoopSettings(n_folds=2, max_iter=100, fit_delta=False, max_candidates=6)
+SETTINGS = LoopSettings(
+    n_folds=2, max_iter=100, fit_delta=False, max_candidates=6, max_effects=1
+)  # one effect hidden: what is tested is the choice among the candidates
 
 
 def _looped(make):
