@@ -27,7 +27,6 @@ from _study import configure_runtime, print_outcome, print_rows, write_study_rep
 
 from sk_offwhite import GreyBoxSparseRegressor
 from sk_offwhite.datasets import emps_physics, emps_reference_physics, load_emps
-from sk_offwhite.diagnose import simulation_metrics
 from sk_offwhite.loop import LoopSettings, close_the_loop, score_models
 
 COULOMB_WIDTH = 0.01
@@ -61,21 +60,6 @@ def drive_library():
         ],
         inputs_per_library=[[0, 1, 2], [1]],
     )
-
-
-def reference_rows(reference, records: dict, init_window: int) -> list[dict]:
-    """The fitted reference law's rows, as `score_models` writes them, under the
-    benchmark's protocol: the state estimated from the first ``init_window`` samples."""
-    rows = []
-    for record, (u, z) in records.items():
-        z_sim = np.asarray(reference.predict(u, z_init=z[:init_window])).reshape(z.shape)
-        overall = simulation_metrics(z, z_sim, skip=init_window)["overall"]
-        score = {key: overall[key] for key in ("rmse", "fit_percent")}
-        rows.append(
-            dict(model=REFERENCE_LABEL, record=record, protocol="init_window", **score,
-                 diverged_at=None)
-        )  # fmt: skip
-    return rows
 
 
 def fitted_reference(data, max_iter: int) -> GreyBoxSparseRegressor:
@@ -133,9 +117,9 @@ def main(argv=None):
     u_fit, z_fit = data.u_est[:n_fit], data.z_est[:n_fit]
     result = close_the_loop(physics, drive_library(), u_fit, z_fit, settings=settings)
     records = {"estimation": (u_fit, z_fit), "validation": (data.u_val, data.z_val)}
-    rows = score_models(result, records, init_window=init_window)
     reference = fitted_reference(data, 40 if args.quick else 1000)
-    rows += reference_rows(reference, records, init_window)
+    others = {REFERENCE_LABEL: reference}
+    rows = score_models(result, records, init_window=init_window, others=others)
     elapsed = time.perf_counter() - start
     notes = [
         "Data: measured EMPS benchmark (Janot, Gautier, Brunot 2019), decimated to 100 Hz.",

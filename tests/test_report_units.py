@@ -155,3 +155,29 @@ def test_an_added_dictionary_term_is_reported_as_a_stand_in(report_inputs, tmp_p
     leak_line = next(line for line in lines if line.startswith("- `leak_x`"))
     assert "names no physical law (a stand-in" in term_line
     assert "stand-in" not in leak_line and not leak_line.endswith("; ")
+
+
+def test_other_estimators_are_scored_as_the_loops_models_and_reported(report_inputs, tmp_path):
+    """A model of the user's own (here the declared fit itself, under another label) gets the
+    rows of the loop's models, to the last digit, and the report's table shows them."""
+    result, rows, records = report_inputs
+    scored = score_models(result, records, others={"reference law": result.baseline})
+    assert scored[: len(rows)] == rows
+    declared = [{**r, "model": "reference law"} for r in rows if r["model"] == "declared physics"]
+    assert scored[len(rows) :] == declared
+    path = write_report(result, scored, records, tmp_path, title="Leaky tank")
+    assert "| reference law | validation | init_window |" in path.read_text()
+
+
+@pytest.mark.parametrize(
+    "others, error, message",
+    [
+        ([("reference law", None)], TypeError, "others must map labels"),
+        ({"declared physics": None}, ValueError, "'declared physics' is not a new label"),
+        ({"reference law": GreyBoxSparseRegressor()}, TypeError, "must be a fitted"),
+    ],
+)
+def test_score_models_refuses_bad_others(report_inputs, others, error, message):
+    result, _, records = report_inputs
+    with pytest.raises(error, match=message):
+        score_models(result, records, others=others)

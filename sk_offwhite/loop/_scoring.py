@@ -9,6 +9,8 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+
 import numpy as np
 
 from .._validation import check_record
@@ -48,7 +50,9 @@ def _protocol_metrics(est, u, z, protocol: str, init_window: int) -> dict:
     return {"per_output": {}, "overall": overall}
 
 
-def score_models(result, records: dict, init_window: int = 50) -> list[dict]:
+def score_models(
+    result, records: dict, init_window: int = 50, others: Mapping | None = None
+) -> list[dict]:
     """Rows ``{model, record, protocol, rmse, fit_percent, diverged_at}`` for every fitted
     model and record.
 
@@ -56,13 +60,16 @@ def score_models(result, records: dict, init_window: int = 50) -> list[dict]:
     model whose simulation of a record diverges is scored, not dropped: ``rmse`` ``inf``,
     ``fit_percent`` ``-inf`` and ``diverged_at`` the first sample that is not finite
     (``None`` for a finite simulation), with a
-    [`DivergenceWarning`][sk_offwhite.DivergenceWarning] from the simulation.
+    [`DivergenceWarning`][sk_offwhite.DivergenceWarning] from the simulation. ``others``
+    maps a label to a fitted estimator of your own (a reference physics, a baseline),
+    scored the same way after the loop's models; `write_report` shows its rows with theirs.
     """
     records = checked_records(records)
     _check_scoring(result, records, init_window)
+    models = {label: getattr(result, key, None) for key, label in MODEL_LABELS.items()}
+    models |= _checked_others(others, models)
     rows = []
-    for key, label in MODEL_LABELS.items():
-        est = getattr(result, key, None)
+    for label, est in models.items():
         if est is None:  # not fitted (fit_delta=False), failed (listed in the report) or older
             continue
         for record, (u, z) in records.items():
@@ -79,6 +86,22 @@ def score_models(result, records: dict, init_window: int = 50) -> list[dict]:
                     )
                 )
     return rows
+
+
+def _checked_others(others, models: dict) -> dict:
+    """``others`` as a dict of new labels to fitted estimators, or an error naming it."""
+    if others is None:
+        return {}
+    if not isinstance(others, Mapping):
+        raise TypeError(
+            f"others must map labels to fitted estimators, got {type(others).__name__}."
+        )
+    for label, est in others.items():
+        if not isinstance(label, str) or label in models:
+            raise ValueError(f"others: {label!r} is not a new label (the loop's: {list(models)}).")
+        if not hasattr(est, "simulate") or not hasattr(est, "n_outputs_"):
+            raise TypeError(f"others[{label!r}] must be a fitted GreyBoxSparseRegressor.")
+    return dict(others)
 
 
 def checked_records(records) -> dict:
