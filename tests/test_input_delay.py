@@ -231,9 +231,7 @@ def test_the_delay_fitted_in_milliseconds_is_the_delay_fitted_in_seconds(drive):
 @pytest.mark.slow
 def test_the_loop_names_the_dead_time_not_the_lag_and_recovers_the_motor():
     data = make_delayed_drive(n_samples=400, random_state=0)
-    settings = LoopSettings(
-        n_folds=2, max_iter=100, fit_delta=False, max_candidates=6, max_effects=1
-    )
+    settings = LoopSettings(n_folds=2, max_iter=100, fit_delta=False, max_effects=1)
     result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=settings)
     assert [type(e) for e in result.effects] == [InputDelay] and result.failures == []
     fitted = result.final.parameters_

@@ -206,13 +206,14 @@ def test_the_lag_fitted_in_milliseconds_is_the_lag_fitted_in_seconds(drive):
 @pytest.mark.slow
 def test_the_loop_names_the_lag_and_recovers_the_motor():
     data = make_lagged_drive(n_samples=400, random_state=0)
-    settings = LoopSettings(
-        n_folds=2, max_iter=100, fit_delta=False, max_candidates=6, max_effects=1
-    )
+    settings = LoopSettings(n_folds=2, max_iter=100, fit_delta=False, max_effects=1)
     result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=settings)
-    assert [type(e) for e in result.effects] == [InputLag] and result.failures == []
+    # the motor is linear: a lag of its command and a lag of its speed's reading commute, and
+    # only the record's start tells them apart (the loop notes that both fit as well)
+    (lag,) = result.effects
+    assert isinstance(lag, InputLag | SensorLag) and result.failures == []
     fitted = result.final.parameters_
-    assert fitted["lag_u_time_constant"] == pytest.approx(DRIVE_LAG, rel=0.05)
+    assert fitted[f"{lag.name}_time_constant"] == pytest.approx(DRIVE_LAG, rel=0.05)
     for name, value in DRIVE_THETA.items():
         assert fitted[name] == pytest.approx(value, rel=0.05), name
     rows = score_models(result, {"validation": (data.u_val, data.z_val)})
