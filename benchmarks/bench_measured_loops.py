@@ -38,10 +38,6 @@ COLUMNS = ["benchmark", "record", "unit", "declared physics", "augmented physics
            "chosen model", "chosen", "effects added", "functions of the kinds",
            "reference physics", "seconds"]  # fmt: skip
 
-REFERENCE_LABEL = "reference law, fitted"
-"""The rows of a benchmark's own reference physics, fitted on the estimation record, in
-the report (the EMPS example writes them)."""
-
 KIND_NOTE = "the functions of the variables' kinds explain more than the dictionary: "
 """What the report's note on the functions of the variables' kinds says before its list."""
 
@@ -77,7 +73,14 @@ def loop_row(name: str, facts: dict, seconds: float, protocol: str = "init_windo
     return [name + ("" if protocol == "init_window" else f" ({protocol})"), record, unit,
             scaled("declared physics"), scaled("augmented physics"), scaled(chosen_label),
             chosen_label, effects or "none", kind_findings(facts["notes"]),
-            scaled(REFERENCE_LABEL), seconds]  # fmt: skip
+            scaled(reference_label(facts)), seconds]  # fmt: skip
+
+
+def reference_label(facts: dict) -> str | None:
+    """The label of the report's model that is not the loop's (a reference physics the
+    example scored with ``score_models(others=...)``), or ``None``."""
+    others = {row["model"] for row in facts["rows"]} - set(MODEL_LABELS.values())
+    return next(iter(others), None)
 
 
 def kind_findings(notes: list[str]) -> str:

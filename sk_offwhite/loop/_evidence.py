@@ -130,8 +130,8 @@ def read_kind_notes(search: Search, physics, library, states) -> None:
     (`kind_notes` on ``states``, ``physics``' free run) joins ``search.notes`` (a failed
     fit: a line of ``search.failures``)."""
     if search.settings.kind_notes:
-        label, function = "evidence of the kinds", kind_notes
-        notes = search.attempt(label, function, search, physics, library, states)
+        arguments = (search, physics, library, states)
+        notes = search.attempt("evidence of the kinds", kind_notes, *arguments)
         search.notes.extend(notes or [])
 
 
