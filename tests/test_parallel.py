@@ -10,9 +10,12 @@ import pytest
 
 from sk_offwhite import GreyBoxSparseRegressor, fit_gamma_path
 from sk_offwhite.datasets import make_leaky_tank
-from sk_offwhite.loop import LoopSettings, close_the_loop
+from sk_offwhite.effects import Bias, Leak
+from sk_offwhite.loop import LoopSettings, _cv, _sets, close_the_loop
 from sk_offwhite.loop._cv import _fold_rmse
 from sk_offwhite.loop._search import Search
+from sk_offwhite.loop._selection import board_search
+from sk_offwhite.loop._switchboard import effect_sets
 from sk_offwhite.runtime._parallel import gather, launch, start_workers
 
 
@@ -113,6 +116,33 @@ def test_the_loop_with_workers_chooses_and_scores_as_in_one_process(tank):
     assert [label for label, _ in board.selection] == [label for label, _ in one.selection]
     scores = [[score for _, score in result.selection] for result in (board, one)]
     np.testing.assert_allclose(*scores, rtol=1e-6)  # fits stopped at max_iter=40
+
+
+def test_the_sets_on_a_switchboard_and_their_folds_are_fitted_in_this_process(tank, monkeypatch):
+    """Every worker would trace and compile the board's programs again for itself."""
+    asked = []
+
+    def spying(module):
+        real = module.launch
+
+        def launch(function, arguments, n_jobs=None, release_after=False):
+            asked.append(n_jobs)
+            return real(function, arguments, n_jobs, release_after)
+
+        monkeypatch.setattr(module, "launch", launch)
+
+    spying(_sets), spying(_cv)
+    settings = LoopSettings(n_folds=2, max_iter=20, n_jobs=2)
+    steps = [((Leak(0),), {}, None), ((Leak(0), Bias(0)), {}, None)]
+    shared, separate = (effect_sets(tank.physics, [Leak(0), Bias(0)], s) for s in (True, False))
+    search = Search(tank.u, tank.z, settings)
+    view = board_search(search, shared)
+    assert board_search(search, separate) is search
+    assert view.failures is search.failures and view.notes is search.notes
+    here = _sets.sets_cv(view, shared, steps)
+    assert asked and set(asked) == {None}  # the sets and their folds, here
+    alone = _sets.sets_cv(Search(tank.u, tank.z, settings.replace(n_jobs=None)), shared, steps)
+    assert [row[:2] for row in here] == [row[:2] for row in alone]
 
 
 class _Broken:

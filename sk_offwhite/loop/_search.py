@@ -9,6 +9,7 @@ failures.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass, field
@@ -52,6 +53,14 @@ class Search:
         released (the caller releases per task), failures of its own."""
         alone = self.settings.replace(n_jobs=None, release_programs=False)
         return Search(self.u, self.z, alone)
+
+    def here(self) -> Search:
+        """A view of this search whose fits all run in this process, nothing released
+        between them (the stage releases at its end); failures and notes are this
+        search's. For fits that share compiled programs (a switchboard's): each worker
+        would trace and compile them again for itself."""
+        alone = self.settings.replace(n_jobs=None, release_programs=False)
+        return dataclasses.replace(self, settings=alone)
 
     def estimator(self, physics, *, cv: bool = False, **params) -> GreyBoxSparseRegressor:
         """An estimator of ``physics`` with the loop's fit settings (its ``cv_horizon`` for

@@ -45,12 +45,12 @@ def select_effects(search: Search, physics, candidates, base_rmse, declared_cv=N
     """Effect sets by forward selection and nested by single gain, chosen by CV RMSE.
 
     A set's effects are composed in the order of the single fits; with ``share_programs``
-    all sets are fitted on one `Switchboard`. Returns the chosen effects (in that order),
-    the CV trail (starting with ``declared_cv``, computed when ``None``), the single-fit
-    RMSEs, the effects' fitted parameters (the start of the final fit) and each set's fit
-    on the whole record by the trail's labels. ``groups`` are ``(effects, starts)`` of
-    effects that may only help together (`joint_groups`): each is fitted and
-    cross-validated as a set of its own.
+    all sets are fitted on one `Switchboard`, in this process (`board_search`). Returns the
+    chosen effects (in that order), the CV trail (starting with ``declared_cv``, computed
+    when ``None``), the single-fit RMSEs, the effects' fitted parameters (the start of the
+    final fit) and each set's fit on the whole record by the trail's labels. ``groups``
+    are ``(effects, starts)`` of effects that may only help together (`joint_groups`):
+    each is fitted and cross-validated as a set of its own.
     """
     settings = search.settings
     if declared_cv is None:
@@ -60,6 +60,7 @@ def select_effects(search: Search, physics, candidates, base_rmse, declared_cv=N
     # sets compose their effects in the order of the single fits (best first)
     variants = with_richer([c.effect for _, c, _ in ranked])
     board = effect_sets(physics, variants, settings.share_programs)
+    search = board_search(search, board)
     singles = [(c.effect.name, r) for r, c, _ in ranked]
     steps = search.released(forward(search, board, ranked, base_rmse))
     steps += joint_steps(search, board, groups, steps, base_rmse)
@@ -77,6 +78,13 @@ def select_effects(search: Search, physics, candidates, base_rmse, declared_cv=N
     trail = [row for row in trail if row[0] not in rescored] + rows
     chosen, warm = physical_instead(search, physics, board, trail, steps, (chosen, warm))
     return board.ordered(chosen), trail, singles, warm, fits
+
+
+def board_search(search: Search, board) -> Search:
+    """``search``, or for a `Switchboard` its view whose fits run in this process
+    (`Search.here`): the sets on a board share its compiled programs, which every worker
+    would trace and compile again for itself."""
+    return search.here() if isinstance(board, Switchboard) else search
 
 
 def physical_instead(search: Search, physics, board, trail, steps, chosen):
