@@ -290,7 +290,7 @@ one_standard_error, release_programs, fit_output_delta, output_bumps, kind_notes
         min_share: float = 0.1,
         n_promoted: int = 3,
         fit_delta: bool = True,
-        share_programs: bool = True,
+        share_programs: bool = False,
         one_standard_error: bool = False,
         release_programs: bool = True,
         fit_output_delta: bool = True,

@@ -51,16 +51,18 @@ class Search:
     def detached(self) -> Search:
         """A copy for a worker process: the record and the settings, one process, nothing
         released (the caller releases per task), failures of its own."""
-        alone = self.settings.replace(n_jobs=None, release_programs=False)
-        return Search(self.u, self.z, alone)
+        return Search(self.u, self.z, self._one_process())
 
     def here(self) -> Search:
         """A view of this search whose fits all run in this process, nothing released
         between them (the stage releases at its end); failures and notes are this
         search's. For fits that share compiled programs (a switchboard's): each worker
         would trace and compile them again for itself."""
-        alone = self.settings.replace(n_jobs=None, release_programs=False)
-        return dataclasses.replace(self, settings=alone)
+        return dataclasses.replace(self, settings=self._one_process())
+
+    def _one_process(self) -> LoopSettings:
+        """The settings of fits that all run in one process, nothing released."""
+        return self.settings.replace(n_jobs=None, release_programs=False)
 
     def estimator(self, physics, *, cv: bool = False, **params) -> GreyBoxSparseRegressor:
         """An estimator of ``physics`` with the loop's fit settings (its ``cv_horizon`` for

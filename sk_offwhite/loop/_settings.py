@@ -118,10 +118,12 @@ class LoopSettings:
         How many of the strongest dictionary terms are proposed as they are.
     fit_delta : bool, default=True
         Whether the models with a sparse $\delta$ are fitted (they show what is left).
-    share_programs : bool, default=True
+    share_programs : bool, default=False
         Whether every effect set is fitted on one compiled program (a switchboard), in
-        this process: each worker would compile it again. ``False`` gives each set a model
-        of its own, its fits and folds spread over ``n_jobs`` processes.
+        this process (each worker would compile it again), rather than on a model of its
+        own, its fits and folds spread over ``n_jobs`` processes. Sharing pays where the
+        fits are mostly compilation (short records); on long records, where they are
+        mostly simulation, the workers pay.
     selection : {'cv', 'tail'}, default='cv'
         How every choice is scored: ``'cv'``, the mean held-out error over ``n_folds``
         contiguous blocks; ``'tail'``, the held-out error of the last ``tail_fraction`` of
@@ -173,7 +175,7 @@ class LoopSettings:
     min_share: float = 0.1
     n_promoted: int = 3
     fit_delta: bool = True
-    share_programs: bool = True
+    share_programs: bool = False
     selection: str = "cv"
     tail_fraction: float = 0.25
     n_jobs: int | None = None

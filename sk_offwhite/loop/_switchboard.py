@@ -10,13 +10,16 @@ solver pads its free vector to one size for every set (``Model.free_multiple``),
 sets share one compiled program per layout. Both compose a set's effects in the order the
 candidates are given.
 
-The board compiles less than separate models do, and the loop fits the effect sets on it
-by default (``LoopSettings(share_programs=True)``), in one process: each worker would
-compile the board's programs again for itself, where a separate model is compiled only by
-the worker that fits it. The board's rounding differs from that of a set's own model: a fit
-on the whole record agrees with its own model's to rounding, but the folds' fits, stopped
-at ``max_iter``, can amplify the difference enough to flip a near-tie between two sets;
-the chosen set is therefore fitted again on a model of its own, the model the loop keeps.
+The board compiles less than separate models do. With ``LoopSettings(share_programs=True)``
+the loop fits the effect sets on one, in its own process: each worker would compile the
+board's programs again for itself, where a separate model is compiled only by the worker
+that fits it. That pays where the fits are mostly compilation (a short record); where they
+are mostly simulation (a long record), separate models spread over the workers pay, which
+is why the board is not the default for the effect sets. The board's rounding also differs
+from that of a set's own model: a fit on the whole record agrees with its own model's to
+rounding, but the folds' fits, stopped at ``max_iter``, can amplify the difference enough
+to flip a near-tie between two sets; the chosen set is fitted again on a model of its own,
+the model the loop keeps.
 
 The single candidates are another matter (`single_effect_models`). Each is fitted once, on
 the estimation record (no fold), and a candidate's fit is mostly compilation. On one board,
