@@ -131,7 +131,8 @@ def test_the_sets_on_a_switchboard_and_their_folds_are_fitted_in_this_process(ta
 
         monkeypatch.setattr(module, "launch", launch)
 
-    spying(_sets), spying(_cv)
+    for module in (_sets, _cv):
+        spying(module)
     settings = LoopSettings(n_folds=2, max_iter=5, n_jobs=2)
     steps = [((Leak(0), Bias(0)), {}, None)]
     shared, separate = (effect_sets(tank.physics, [Leak(0), Bias(0)], s) for s in (True, False))
