@@ -7,7 +7,9 @@ import tempfile
 # Set before JAX starts, for this process and every process it spawns (xdist workers,
 # example scripts, joblib and Dask workers): one XLA thread per process, since the two
 # workers already use both cores, and one compilation cache for the whole run, so a
-# program compiled by one process is loaded, not compiled again, by the others.
+# program compiled by one process is loaded, not compiled again, by the others. The cache
+# keeps every program, as `enable_compilation_cache` does: JAX's default keeps only those
+# that take over 1 s to compile, and most of the solver's take less.
 os.environ.setdefault(
     "XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1"
 )
@@ -15,6 +17,8 @@ CREATED_CACHE = None
 if "JAX_COMPILATION_CACHE_DIR" not in os.environ:
     CREATED_CACHE = tempfile.mkdtemp(prefix="sk_offwhite_jax_")
     os.environ["JAX_COMPILATION_CACHE_DIR"] = CREATED_CACHE
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_COMPILE_TIME_SECS", "0")
+os.environ.setdefault("JAX_PERSISTENT_CACHE_MIN_ENTRY_SIZE_BYTES", "0")
 
 from sk_offwhite import enable_fused_loops  # noqa: E402 (imports JAX, starts no backend)
 
