@@ -479,24 +479,14 @@ def fit_gamma_path(
     sample_index = check_sample_index(sample_index)
     if cv is not None:  # a splitter that cannot cut the record fails before any fit
         _check_window_fits(estimator, init_window, _splits(cv, len(u_arr)))
-    if gammas is None:
-        values, gamma_max = _grid(estimator, u_arr, z_arr, n_gammas, eps, sample_index)
-    else:
-        values, gamma_max = _check_gammas(gammas), np.nan
-        if np.any(np.diff(values) >= 0):
-            min_improvement = 0.0  # the early end compares each gamma with a larger one
-    jobs = folds = None
+    values, gamma_max, min_improvement = _path_grid(
+        estimator, u_arr, z_arr, gammas, n_gammas, eps, sample_index, min_improvement
+    )
+    folds = None
     if cv is not None:
         window = _init_window(estimator, init_window, len(u_arr))
         shared = (values, window, min_improvement, stop_at_divergence)
-        arguments = [
-            (clone(estimator), u_arr, z_arr, train, test, *shared)
-            for train, test in _splits(cv, len(u_arr))
-        ]
-        if effective_n_jobs(n_jobs) == 1:
-            folds = _folds_together(arguments, stop_at_divergence)
-        else:
-            jobs = launch(_fold_errors, arguments, n_jobs)
+        folds = _start_folds(estimator, u_arr, z_arr, cv, shared, n_jobs)
     warm_start = estimator.warm_start
     try:
         snapshots, train_error = _whole_record_path(
@@ -505,24 +495,16 @@ def fit_gamma_path(
     finally:
         estimator.set_params(warm_start=warm_start)
     values = values[: len(snapshots)]
-    if jobs is not None:
-        folds = np.stack(gather(jobs))
-        folds = _cut_at_divergence(folds) if stop_at_divergence else folds
     failed = np.array([snap is None for snap in snapshots])
-    cv_error, cv_rmse = (None, None) if folds is None else _fold_scores(folds, failed)
-    best = None
-    if cv_error is not None:
+    cv_error = cv_rmse = best = None
+    if folds is not None:
+        cv_error, cv_rmse = _fold_scores(_finished_folds(folds, stop_at_divergence), failed)
         best = _choose(cv_error, values, one_standard_error, stop_at_divergence)
-    chosen, start = int(np.flatnonzero(~failed)[-1]) if best is None else best, "continuation"
+    chosen = int(np.flatnonzero(~failed)[-1]) if best is None else best
     two_starts = best is not None if restart is None else bool(restart)
-    if two_starts:
-        reference = getattr(estimator, "_reference", None)
-        snapshots[chosen], start = _better_start(
-            snapshots[chosen], u_arr, z_arr, sample_index, reference
-        )
-    if start == "reference" and sample_index is None:
-        train_error[chosen] = _normalised_rmse(snapshots[chosen], u_arr, z_arr, 0)
-    vars(estimator).update(vars(snapshots[chosen]))
+    start = _keep_chosen(
+        estimator, snapshots, train_error, chosen, two_starts, (u_arr, z_arr, sample_index)
+    )
     estimator.set_params(warm_start=warm_start)
     shape = estimator.coef_.shape
     coefs = np.stack([np.full(shape, np.nan) if s is None else s.coef_ for s in snapshots])
@@ -538,6 +520,52 @@ def fit_gamma_path(
         cv_rmse,
         start,
     )
+
+
+def _path_grid(estimator, u, z, gammas, n_gammas, eps, sample_index, min_improvement):
+    r"""``(values, gamma_max, min_improvement)``: the given grid (``gamma_max`` nan, and no
+    early end on a grid that is not decreasing, since the end compares each $\gamma$ with a
+    larger one) or [`gamma_grid`][sk_offwhite.gamma_grid] of the record."""
+    if gammas is None:
+        return (*_grid(estimator, u, z, n_gammas, eps, sample_index), min_improvement)
+    values = _check_gammas(gammas)
+    return values, np.nan, 0.0 if np.any(np.diff(values) >= 0) else min_improvement
+
+
+def _start_folds(estimator, u, z, cv, shared: tuple, n_jobs):
+    """Each fold's path (``shared``: the grid, the window, the early end, the stop at
+    divergence): fitted here at once with one process, else launched on ``n_jobs`` workers
+    (their jobs, gathered by `_finished_folds` after the whole record's path)."""
+    arguments = [
+        (clone(estimator), u, z, train, test, *shared) for train, test in _splits(cv, len(u))
+    ]
+    if effective_n_jobs(n_jobs) == 1:
+        return _folds_together(arguments, shared[-1])
+    return launch(_fold_errors, arguments, n_jobs)
+
+
+def _finished_folds(folds, stop_at_divergence: bool) -> np.ndarray:
+    """The folds' held-out errors: ``folds`` as they are when fitted here, else gathered
+    from the workers (and cut at their first divergence)."""
+    if isinstance(folds, np.ndarray):
+        return folds
+    errors = np.stack(gather(folds))
+    return _cut_at_divergence(errors) if stop_at_divergence else errors
+
+
+def _keep_chosen(estimator, snapshots, train_error, chosen: int, two_starts: bool, data):
+    """Leave ``estimator`` at the fit of ``snapshots[chosen]``, the better of its two starts
+    with ``two_starts`` (its training error updated when the reference wins on one record);
+    return which start it is."""
+    u, z, sample_index = data
+    start = "continuation"
+    if two_starts:
+        reference = getattr(estimator, "_reference", None)
+        snapshots[chosen], start = _better_start(snapshots[chosen], u, z, sample_index, reference)
+    if start == "reference" and sample_index is None:
+        train_error[chosen] = _normalised_rmse(snapshots[chosen], u, z, 0)
+    vars(estimator).update(vars(snapshots[chosen]))
+    return start
 
 
 PATH_CONSTRAINTS: dict = {
