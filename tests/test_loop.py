@@ -60,9 +60,11 @@ from sk_offwhite.model._kinds import Kinds
 
 @pytest.fixture(scope="module")
 def leaky():
+    """The whole loop, every stage, on the leaky tank; the three best-ranked candidates
+    fitted (the leak among them), the others marked in the trail."""
     data = make_leaky_tank(n_samples=600, random_state=0)
     settings = LoopSettings(
-        gammas=(1e-3,), n_folds=2, max_iter=150, max_effects=1, max_candidates=6
+        gammas=(1e-3,), n_folds=2, max_iter=150, max_effects=1, max_candidates=3
     )
     result = close_the_loop(data.physics, data.suggested_library, data.u, data.z, settings=settings)
     return data, result
