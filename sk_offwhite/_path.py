@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import copy
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from numbers import Integral, Real
 
@@ -482,11 +483,11 @@ def fit_gamma_path(
     values, gamma_max, min_improvement = _path_grid(
         estimator, u_arr, z_arr, gammas, n_gammas, eps, sample_index, min_improvement
     )
-    folds = None
+    fold_errors = None
     if cv is not None:
         window = _init_window(estimator, init_window, len(u_arr))
         shared = (values, window, min_improvement, stop_at_divergence)
-        folds = _start_folds(estimator, u_arr, z_arr, cv, shared, n_jobs)
+        fold_errors = _start_folds(estimator, u_arr, z_arr, cv, shared, n_jobs)
     warm_start = estimator.warm_start
     try:
         snapshots, train_error = _whole_record_path(
@@ -497,13 +498,13 @@ def fit_gamma_path(
     values = values[: len(snapshots)]
     failed = np.array([snap is None for snap in snapshots])
     cv_error = cv_rmse = best = None
-    if folds is not None:
-        cv_error, cv_rmse = _fold_scores(_finished_folds(folds, stop_at_divergence), failed)
+    if fold_errors is not None:
+        cv_error, cv_rmse = _fold_scores(fold_errors(), failed)
         best = _choose(cv_error, values, one_standard_error, stop_at_divergence)
     chosen = int(np.flatnonzero(~failed)[-1]) if best is None else best
     two_starts = best is not None if restart is None else bool(restart)
     start = _keep_chosen(
-        estimator, snapshots, train_error, chosen, two_starts, (u_arr, z_arr, sample_index)
+        estimator, snapshots, train_error, chosen, two_starts, u_arr, z_arr, sample_index
     )
     estimator.set_params(warm_start=warm_start)
     shape = estimator.coef_.shape
@@ -532,32 +533,32 @@ def _path_grid(estimator, u, z, gammas, n_gammas, eps, sample_index, min_improve
     return values, np.nan, 0.0 if np.any(np.diff(values) >= 0) else min_improvement
 
 
-def _start_folds(estimator, u, z, cv, shared: tuple, n_jobs):
-    """Each fold's path (``shared``: the grid, the window, the early end, the stop at
-    divergence): fitted here at once with one process, else launched on ``n_jobs`` workers
-    (their jobs, gathered by `_finished_folds` after the whole record's path)."""
+def _start_folds(estimator, u, z, cv, shared: tuple, n_jobs) -> Callable[[], np.ndarray]:
+    """Start each fold's path (``shared``: the grid, the window, the early end, the stop at
+    divergence) and return the function that gives their held-out errors: the folds are
+    fitted here at once with one process, else launched now on ``n_jobs`` workers and
+    gathered (cut at their first divergence) when the function is called, after the whole
+    record's path."""
+    stop_at_divergence = shared[-1]
     arguments = [
         (clone(estimator), u, z, train, test, *shared) for train, test in _splits(cv, len(u))
     ]
     if effective_n_jobs(n_jobs) == 1:
-        return _folds_together(arguments, shared[-1])
-    return launch(_fold_errors, arguments, n_jobs)
+        errors = _folds_together(arguments, stop_at_divergence)
+        return lambda: errors
+    jobs = launch(_fold_errors, arguments, n_jobs)
+
+    def gathered() -> np.ndarray:
+        errors = np.stack(gather(jobs))
+        return _cut_at_divergence(errors) if stop_at_divergence else errors
+
+    return gathered
 
 
-def _finished_folds(folds, stop_at_divergence: bool) -> np.ndarray:
-    """The folds' held-out errors: ``folds`` as they are when fitted here, else gathered
-    from the workers (and cut at their first divergence)."""
-    if isinstance(folds, np.ndarray):
-        return folds
-    errors = np.stack(gather(folds))
-    return _cut_at_divergence(errors) if stop_at_divergence else errors
-
-
-def _keep_chosen(estimator, snapshots, train_error, chosen: int, two_starts: bool, data):
+def _keep_chosen(estimator, snapshots, train_error, chosen, two_starts, u, z, sample_index):
     """Leave ``estimator`` at the fit of ``snapshots[chosen]``, the better of its two starts
     with ``two_starts`` (its training error updated when the reference wins on one record);
     return which start it is."""
-    u, z, sample_index = data
     start = "continuation"
     if two_starts:
         reference = getattr(estimator, "_reference", None)
