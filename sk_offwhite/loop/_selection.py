@@ -35,7 +35,7 @@ from ._refinement import swap
 from ._scan import scan_note, scan_scores, scanned_pairs, to_fit
 from ._search import Search
 from ._sets import best_of, sets_cv
-from ._switchboard import Switchboard, effect_sets, single_effect_models
+from ._switchboard import effect_sets, single_effect_models
 from ._variants import mechanism, representatives, richer
 
 __all__ = ["select_effects"]
@@ -81,10 +81,9 @@ def select_effects(search: Search, physics, candidates, base_rmse, declared_cv=N
 
 
 def board_search(search: Search, board) -> Search:
-    """``search``, or for a `Switchboard` its view whose fits run in this process
-    (`Search.here`): the sets on a board share its compiled programs, which every worker
-    would trace and compile again for itself."""
-    return search.here() if isinstance(board, Switchboard) else search
+    """``search``, or its view whose fits run in this process (`Search.here`) for a board
+    whose fits share their compiled programs (``fitted_here``)."""
+    return search.here() if board.fitted_here else search
 
 
 def physical_instead(search: Search, physics, board, trail, steps, chosen):
@@ -132,8 +131,7 @@ def rank_alone(search: Search, candidates, models):
         (f"candidate {effect.name}", quick_fit, worker, model, (effect,), {})
         for effect, model in zip(effects, models, strict=True)
     ]
-    on_board = [isinstance(model, Switchboard) for model in models]
-    fitted = search.attempt_split(calls, on_board)
+    fitted = search.attempt_split(calls, [model.fitted_here for model in models])
     ranked = [
         (np.inf, candidate, {}) if fit is None else (fit[0], candidate, fit[1])
         for candidate, fit in zip(candidates, fitted, strict=True)

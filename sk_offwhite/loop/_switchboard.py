@@ -54,6 +54,12 @@ class SeparateModels(NamedTuple):
     def of(cls, physics: PhysicsModel, effects) -> SeparateModels:
         return cls(physics, tuple(effects))
 
+    @property
+    def fitted_here(self) -> bool:
+        """False: each set's model is compiled only by the worker that fits it, so its
+        fits may be spread over ``n_jobs`` processes."""
+        return False
+
     def ordered(self, effects) -> tuple:
         """``effects`` in the order of the candidates."""
         chosen = set(effects)
@@ -83,6 +89,12 @@ class Switchboard(NamedTuple):
         board = tuple(switched(effect) for effect in effects if not _structural(effect))
         laws = tuple(effect for effect in effects if _structural(effect))
         return cls(augment(physics, *board).with_parameters(**switches(board, ())), board, laws)
+
+    @property
+    def fitted_here(self) -> bool:
+        """True: the fits on the board share its compiled programs, which every worker
+        would trace and compile again for itself, so they run in the loop's process."""
+        return True
 
     def ordered(self, effects) -> tuple:
         """``effects`` in the order they act on the board (relaxed laws last)."""
