@@ -145,7 +145,7 @@ def test_every_effect_set_of_the_trail_is_scored_on_validation(leaky, tmp_path):
     records = {"estimation": (data.u, data.z), "validation": (data.u_val, data.z_val)}
     path = write_report(result, score_models(result, records), records, tmp_path, title="t")
     text = path.read_text()
-    assert "| validation RMSE (init_window) |" in text
+    assert "| validation RMSE (init_window=50) |" in text
     leak = _validation_rmse(result, data, "augmented physics")
     row = next(line for line in text.splitlines() if line.startswith("| leak_x |"))
     assert float(row.split("|")[3]) == pytest.approx(leak, abs=5e-5)  # printed to 4 decimals

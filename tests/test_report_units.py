@@ -59,7 +59,7 @@ def test_rmse_headers_name_the_output_unit(written):
     text, _ = written
     assert "| model | record | protocol | RMSE [m] | fit % |" in text
     assert "| model | cross-validated RMSE [m] (estimation record) |" in text
-    assert "validation RMSE [m] (init_window) |" in text
+    assert "validation RMSE [m] (init_window=50) |" in text
 
 
 def test_units_are_stated_once_with_states_and_parameters_in_the_physics_units(written):
@@ -75,6 +75,29 @@ def test_units_are_stated_once_with_states_and_parameters_in_the_physics_units(w
 def test_results_json_holds_the_units_and_sampling_time(written):
     _, facts = written
     assert facts["units"] == UNITS and facts["sampling_time"] == 2.0
+
+
+def test_the_trail_is_scored_with_the_rows_init_window(report_inputs, tmp_path):
+    """Each cross-validated set is scored on the other records as the rows are: with the
+    ``init_window`` given to `score_models`; results.json holds those scores."""
+    result, _, records = report_inputs
+    rows = score_models(result, records, init_window=5)
+    text = write_report(result, rows, records, tmp_path, title="t").read_text()
+    facts = json.loads((tmp_path / "results.json").read_text())
+    expected = next(
+        r["rmse"]
+        for r in rows
+        if (r["model"], r["record"], r["protocol"]) == ("augmented physics", "validation",
+                                                         "init_window")
+    )  # fmt: skip
+    scored = facts["set_scores"]["declared physics"]["validation"]
+    assert scored["rmse"] == pytest.approx(expected) and scored["diverged_at"] is None
+    assert "validation RMSE (init_window=5) |" in text
+    row = next(line for line in text.splitlines() if line.startswith("| declared physics | 0.1"))
+    assert float(row.split("|")[3]) == pytest.approx(expected, abs=5e-5)
+    assert {r["init_window"] for r in rows} == {None, 5}
+    default = score_models(result, {"validation": records["validation"]})
+    assert all(r["rmse"] != pytest.approx(expected) for r in default if r["init_window"] == 50)
 
 
 def test_without_units_the_report_says_so_and_headers_are_bare(report_inputs, tmp_path):

@@ -280,16 +280,18 @@ def _candidate_lines(result, unit: str = "") -> list[str]:
     return lines
 
 
-def _selection_lines(result, records: dict, units: _Units) -> list[str]:
-    """The CV trail of the effect sets, each also scored on the other records (its fit on
-    the estimation record, ``init_window`` protocol): what every structural step did."""
+def _selection_lines(result, records: dict, units: _Units, trail: tuple) -> list[str]:
+    """The CV trail of the effect sets, each also scored on the other records: ``trail`` is
+    ``(window, scores)``, the ``init_window`` of the rows and `set_scores`. What every
+    structural step did."""
+    window, scores = trail
     others = [name for name in records if name != "estimation"]
     unit = units.rmse(_names(result))
     head = f"| model | cross-validated RMSE{unit} (estimation record) |"
-    lines = [head + "".join(f" {n} RMSE{unit} (init_window) |" for n in others)]
+    lines = [head + "".join(f" {n} RMSE{unit} (init_window={window}) |" for n in others)]
     lines += ["|---|---|" + "---|" * len(others)]
     for name, score in result.selection:
-        cells = [_set_score(result.set_fits.get(name), *records[n]) for n in others]
+        cells = [_score_cell(scores[name].get(n)) for n in others]
         lines.append(f"| {name} | {score:.4f} |" + "".join(f" {c} |" for c in cells))
     chosen = _added_lines(result, records["estimation"][0])
     added = (
@@ -343,14 +345,36 @@ def _set_parameter_lines(result) -> list[str]:
     return ["", "Fitted parameters of each set:", "", *lines] if lines else []
 
 
-def _set_score(est, u, z, init_window: int = 50) -> str:
-    """RMSE of a set's fit on a record (``init_window`` protocol), or a dash."""
-    if est is None:
+def set_scores(result, records: dict, window: int) -> dict[str, dict]:
+    """``{set label: {record: overall metrics}}``: each set of the CV trail, its fit on the
+    estimation record scored on every other record (``init_window`` protocol, ``window``
+    samples); a set whose fit failed has no scores."""
+    others = {name: pair for name, pair in records.items() if name != "estimation"}
+    return {
+        name: {
+            record: _protocol_metrics(est, u, z, "init_window", window)["overall"]
+            for record, (u, z) in others.items()
+        }
+        if (est := result.set_fits.get(name)) is not None
+        else {}
+        for name, _ in result.selection
+    }
+
+
+def _score_cell(overall: dict | None) -> str:
+    """A set's RMSE on a record, where its simulation diverged, or a dash (no fit)."""
+    if overall is None:
         return "—"
-    overall = _protocol_metrics(est, u, z, "init_window", init_window)["overall"]
     if overall["diverged_at"] is not None:
         return f"diverged from sample {overall['diverged_at']}"
     return f"{overall['rmse']:.4f}"
+
+
+def rows_window(rows: list[dict]) -> int:
+    """The ``init_window`` of the rows' ``init_window`` protocol (50, that protocol's
+    default, for rows that do not say)."""
+    windows = (r.get("init_window") for r in rows if r.get("protocol") == "init_window")
+    return next((w for w in windows if w is not None), 50)
 
 
 def _validation_rmse(rows: list[dict], label: str) -> str:
@@ -470,7 +494,8 @@ def write_report(
     result : LoopResult
         What [`close_the_loop`][sk_offwhite.loop.close_the_loop] found.
     rows : list of dict
-        The scores of [`score_models`][sk_offwhite.loop.score_models] on ``records``.
+        The scores of [`score_models`][sk_offwhite.loop.score_models] on ``records``; the
+        effect sets the loop cross-validated are scored with the same ``init_window``.
     records : dict
         Record name to its ``(u, z)`` pair; it must hold ``"estimation"``, the record the
         loop was fitted on. Each record gets a figure of its outputs.
@@ -493,7 +518,8 @@ def write_report(
     -------
     Path
         The path of ``report.md``. ``results.json`` holds the report's facts, with
-        ``units`` and ``sampling_time`` as given.
+        ``units`` and ``sampling_time`` as given and ``set_scores``: each cross-validated
+        effect set's fit scored on every record but the estimation one (`set_scores`).
 
     Raises
     ------
@@ -511,11 +537,13 @@ def write_report(
     u_est = records["estimation"][0]
     has_delta_fig = _figure_correction(result, u_est, out / "correction.png", axis)
     facts, verdict = parameter_facts(result, *records["estimation"])
-    lines = _report_lines(result, rows, records, axis, (facts, verdict, has_delta_fig))
+    window = rows_window(rows)
+    trail = (window, set_scores(result, records, window))
+    lines = _report_lines(result, rows, records, axis, (facts, verdict, has_delta_fig, trail))
     head = [f"# {title}: closed-loop report", "", *notes, "", axis.sentence(result), ""]
     (out / "report.md").write_text("\n".join(head + lines), encoding="utf-8")
     facts = results_facts(result, rows, facts, verdict)
-    facts.update(units=dict(axis.units), sampling_time=axis.sampling_time)
+    facts.update(units=dict(axis.units), sampling_time=axis.sampling_time, set_scores=trail[1])
     table = json.dumps(_finite(facts), indent=2, allow_nan=False, default=_plain)
     (out / "results.json").write_text(table, encoding="utf-8")
     return out / "report.md"
@@ -523,8 +551,9 @@ def write_report(
 
 def _report_lines(result, rows, records, axis: _Units, found) -> list[str]:
     """The report's sections under its title; ``found`` is ``(parameter facts,
-    identifiability verdict, whether the correction figure was drawn)``."""
-    facts, verdict, has_delta_fig = found
+    identifiability verdict, whether the correction figure was drawn, the trail's
+    ``(init_window, set_scores)``)``."""
+    facts, verdict, has_delta_fig, trail = found
     unit = axis.rmse(_names(result))
     lines = (
         ["## Simulation errors", ""] + _table(rows, unit) + ["", "## Residual before and after", ""]
@@ -536,7 +565,7 @@ def _report_lines(result, rows, records, axis: _Units, found) -> list[str]:
     lines += [f"- {note}" for note in result.notes] + ([""] if result.notes else [])
     lines += ["![correction](correction.png)", ""] if has_delta_fig else []
     lines += ["## Effects tried and added", ""] + _candidate_lines(result, unit) + [""]
-    lines += _selection_lines(result, records, axis) + [""]
+    lines += _selection_lines(result, records, axis, trail) + [""]
     lines += ["## Parameters", ""] + _parameter_lines(facts, verdict, axis.outputs(result))
     if result.with_delta is not None:
         lines += ["## Sparse correction on the declared physics", ""]

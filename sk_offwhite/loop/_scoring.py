@@ -53,8 +53,8 @@ def _protocol_metrics(est, u, z, protocol: str, init_window: int) -> dict:
 def score_models(
     result, records: dict, init_window: int = 50, others: Mapping | None = None
 ) -> list[dict]:
-    """Rows ``{model, record, protocol, rmse, fit_percent, diverged_at}`` for every fitted
-    model and record.
+    """Rows ``{model, record, protocol, init_window, rmse, fit_percent, diverged_at}`` for
+    every fitted model and record (``init_window`` ``None`` in the ``original`` rows).
 
     ``records`` maps a record name (``"estimation"``, ``"validation"``) to ``(u, z)``. A
     model whose simulation of a record diverges is scored, not dropped: ``rmse`` ``inf``,
@@ -80,6 +80,7 @@ def score_models(
                         model=label,
                         record=record,
                         protocol=protocol,
+                        init_window=None if protocol == "original" else init_window,
                         rmse=overall["rmse"],
                         fit_percent=overall["fit_percent"],
                         diverged_at=overall["diverged_at"],
