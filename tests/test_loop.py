@@ -21,7 +21,9 @@ from sk_offwhite import (
     Overflow,
     Parameter,
     PhysicsModel,
+    QuadraticDrag,
     RunawayParameterWarning,
+    VaryingParameter,
     augment,
 )
 from sk_offwhite.datasets import make_leaky_tank
@@ -51,7 +53,7 @@ from sk_offwhite.loop._proposals import not_modelled
 from sk_offwhite.loop._refinement import additions_and_exchanges, swap
 from sk_offwhite.loop._report import _json_rows, _table
 from sk_offwhite.loop._search import Search
-from sk_offwhite.loop._selection import best_starts
+from sk_offwhite.loop._selection import always_fitted, best_starts
 from sk_offwhite.loop._sets import set_cv
 from sk_offwhite.loop._switchboard import effect_sets
 from sk_offwhite.loop._variants import mechanism, representatives
@@ -292,6 +294,42 @@ def test_candidates_are_unique_by_name():
     assert len(names) == len(set(names)) and "overflow_x1_to_x2" in names
 
 
+def test_an_overflow_at_a_level_a_hypothesis_located_is_located():
+    """A hypothesis that says where its state loses (its region on that state) places the
+    overflow there and locates it; a region on another variable places and locates
+    nothing, and of two proposals of one name the located one is kept."""
+    states = np.linspace(1.0, 10.0, 200)[:, None] * np.ones((1, 2))
+    names = ("x1", "x2")
+
+    def overflows(region, hypotheses=()):
+        losing = Hypothesis("x1", 0, ("x1",), -1, region, (), "x1 loses.")
+        found = propose_effects([*hypotheses, losing], [], names, ["x2"], states)
+        return {c.effect.name: c for c in found if isinstance(c.effect, Overflow)}
+
+    here = overflows(("x1", 7.5, 10.0))["overflow_x1_to_x2"]
+    assert here.located and here.effect.level == 7.5
+    elsewhere = overflows(("u", 7.5, 10.0))["overflow_x1_to_x2"]
+    assert not elsewhere.located
+    assert elsewhere.effect.level == pytest.approx(float(np.quantile(states[:, 0], 0.8)))
+    gaining = Hypothesis("x2", 1, ("x1",), 1, None, (), "x2 gains.")  # proposes it first
+    kept = overflows(("x1", 7.5, 10.0), [gaining])["overflow_x1_to_x2"]
+    assert kept.located and kept.effect.level == 7.5
+
+
+def test_the_scan_fits_located_effects_laws_and_group_members_whatever_their_rank():
+    overflow, bias = Overflow(0, 1.0, name="overflow_x"), Bias(0, name="bias_x")
+    drag, law = QuadraticDrag(0, name="drag_x"), VaryingParameter("k", 0, "polynomial", 0.04)
+    candidates = [
+        Candidate(overflow, "located", located=True),
+        Candidate(bias, "scanned"),
+        Candidate(drag, "in a group"),
+        Candidate(law, "read from the correction"),
+    ]
+    assert always_fitted(candidates, [((drag, bias), {})]) == {0, 1, 2, 3}
+    assert always_fitted(candidates, []) == {0, 3}
+    assert always_fitted(candidates[1:3], []) == set()
+
+
 def test_max_candidates_caps_the_candidates_fitted(monkeypatch):
     fitted = []
 
@@ -302,7 +340,7 @@ def test_max_candidates_caps_the_candidates_fitted(monkeypatch):
     monkeypatch.setattr(_selection, "rank_alone", rank_alone)
     monkeypatch.setattr(_selection, "structure_cv", lambda *args: 1.0)
     physics = make_leaky_tank(n_samples=50, random_state=0).physics
-    candidates = [SimpleNamespace(effect=Leak(0, name=name)) for name in ("a", "b", "c")]
+    candidates = [Candidate(Leak(0, name=name), "a leak") for name in ("a", "b", "c")]
     search = Search(None, None, LoopSettings(max_candidates=2))
     effects, trail, _, warm, _ = _selection.select_effects(search, physics, candidates, 1.0)
     assert fitted == candidates[:2] and effects == () and warm == {}

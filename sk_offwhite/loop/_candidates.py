@@ -83,19 +83,31 @@ CONSTANT_FEATURE = "1"
 
 @dataclass(frozen=True)
 class Candidate:
-    """An effect to try, and why it was proposed."""
+    """An effect to try, and why it was proposed.
+
+    ``located`` marks an effect that acts beyond a level which a hypothesis located (the
+    region of the state where the correction acts): one linear step from its start cannot
+    judge how far moving that level would take the fit, so the loop fits it whatever the
+    scan's rank (`sk_offwhite.loop._scan`)."""
 
     effect: Effect
     reason: str
+    located: bool = False
+
+
+def _region_level(hypothesis: Hypothesis | None, name: str) -> float | None:
+    """Where ``hypothesis`` says its effect starts on the variable ``name`` (the low end of
+    its region), or ``None`` when its region is on another variable or there is none."""
+    if hypothesis is None or hypothesis.region is None:
+        return None
+    variable, low, _ = hypothesis.region
+    return float(low) if variable == name and np.isfinite(low) else None
 
 
 def _level(hypothesis: Hypothesis | None, states: np.ndarray, index: int, name: str) -> float:
     """Where the hypothesis says the effect starts, else the 80th percentile of the state."""
-    if hypothesis is not None and hypothesis.region is not None:
-        variable, low, _ = hypothesis.region
-        if variable == name and np.isfinite(low):
-            return float(low)
-    return float(np.quantile(states[:, index], 0.8))
+    located = _region_level(hypothesis, name)
+    return float(np.quantile(states[:, index], 0.8)) if located is None else located
 
 
 CORNER_FRACTION = 0.025
@@ -132,12 +144,14 @@ def _losses(hypothesis, states, names) -> list[Candidate]:
     state, or leaving the system when there is none), a leak."""
     i, name = hypothesis.equation_index, hypothesis.equation
     level = _level(hypothesis, states, i, name)
+    located = _region_level(hypothesis, name) is not None
     why = f"{hypothesis.sentence} An overflow of {name} above about {level:.3g}"
     sinks = [j for j in range(len(names)) if j != i] or [None]
     out = [
         Candidate(
             _overflow(i, level, j, names, states),
             why + (" leaving the system." if j is None else f", part of it reaching {names[j]}."),
+            located,
         )
         for j in sinks
     ]
@@ -533,10 +547,13 @@ def _is_level(state: int, states, kinds: Kinds) -> bool:
 
 
 def unique_by_name(candidates) -> list[Candidate]:
-    """``candidates`` without repeated effect names (the first proposal of each kept)."""
-    unique = {}
+    """``candidates`` without repeated effect names: of each name the first located
+    proposal, else the first (in the place of the name's first proposal)."""
+    unique: dict[str, Candidate] = {}
     for candidate in candidates:
-        unique.setdefault(candidate.effect.name, candidate)
+        kept = unique.setdefault(candidate.effect.name, candidate)
+        if candidate.located and not kept.located:
+            unique[candidate.effect.name] = candidate
     return list(unique.values())
 
 
@@ -638,7 +655,7 @@ def propose_effects(
             found += _lags(hypothesis, u_arr, tuple(input_names), dt, correlated_inputs)
         u_rows = np.zeros((len(states), 0)) if u_arr is None else u_arr
         proposals += [
-            Candidate(_fitted_start(c.effect, hypothesis, states, u_rows, dt), c.reason)
+            replace(c, effect=_fitted_start(c.effect, hypothesis, states, u_rows, dt))
             for c in found
         ]
     if measured is not None:

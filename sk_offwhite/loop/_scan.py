@@ -16,9 +16,11 @@ them; the candidates that share a switchboard share one compiled program for it.
 
 The scan ranks; it does not decide. The `fit_top` best scanned candidates are fitted
 (`sk_offwhite.loop._selection.rank_alone`) with every law read from δ and every candidate
-the scan cannot judge (one with memory of its own or a relaxed law, on a model of its own,
-or whose start does not simulate), and the loop's note says how many were scanned and how
-many fitted.
+the scan cannot judge: one with memory of its own or a relaxed law, on a model of its own,
+one whose start does not simulate, and one that acts beyond a level a hypothesis located
+(an overflow where the correction says the state loses above a level: one linear step from
+the level's start cannot tell how far moving the level would take the fit). The loop's
+note says how many were scanned and how many fitted.
 """
 
 from __future__ import annotations

@@ -142,22 +142,32 @@ def rank_alone(search: Search, candidates, models):
 def scan_and_fit(search: Search, physics, candidates, groups):
     """``(ranked, groups)``: the single fits (`rank_alone`) of the candidates the scan
     keeps (`sk_offwhite.loop._scan`: the ``fit_top`` best, those it cannot judge, the
-    members of ``groups`` and of the scanned pairs, and the laws read from δ, the loop's
-    own strongest evidence), best first, and ``groups`` with the
-    scanned pairs (`pair_groups`). A note says how many were scanned and fitted."""
+    members of ``groups`` and of the scanned pairs, the laws read from δ, the loop's
+    own strongest evidence, and the effects at a level a hypothesis located), best first,
+    and ``groups`` with the scanned pairs (`pair_groups`). A note says how many were
+    scanned and fitted."""
     settings = search.settings
     models = candidate_models(physics, candidates, settings.share_programs)
     scores = scan_scores(search, models, candidates)
     pairs = scanned_pairs(search, models, candidates, scores, settings.n_pairs)
-    members = {id(effect) for effects, _ in groups for effect in effects}
-    needed = {k for i, j, _ in pairs for k in (i, j)}
-    needed |= {k for k, c in enumerate(candidates) if id(c.effect) in members}
-    needed |= {k for k, c in enumerate(candidates) if isinstance(c.effect, VaryingParameter)}
+    needed = {k for i, j, _ in pairs for k in (i, j)} | always_fitted(candidates, groups)
     fitted = [keep or k in needed for k, keep in enumerate(to_fit(scores, settings.fit_top))]
     search.notes.append(scan_note(candidates, scores, fitted))
     kept = [k for k, keep in enumerate(fitted) if keep]
     ranked = rank_alone(search, [candidates[k] for k in kept], [models[k] for k in kept])
     return search.released(ranked), [*groups, *pair_groups(candidates, pairs, ranked)]
+
+
+def always_fitted(candidates, groups) -> set[int]:
+    """Indices of the ``candidates`` fitted whatever their scan score: the members of
+    ``groups``, the laws read from δ and the effects at a level a hypothesis located
+    (``located``)."""
+    members = {id(effect) for effects, _ in groups for effect in effects}
+    return {
+        k
+        for k, c in enumerate(candidates)
+        if id(c.effect) in members or isinstance(c.effect, VaryingParameter) or c.located
+    }
 
 
 def pair_groups(candidates, pairs, ranked) -> list[tuple[tuple, dict]]:
