@@ -66,8 +66,7 @@ def loop_row(name: str, facts: dict, seconds: float, protocol: str = "init_windo
     chosen_label = MODEL_LABELS[facts["chosen"]]
 
     def scaled(model):
-        value = rmse(facts, model, record, protocol)
-        return None if value is None else scale * value
+        return in_unit(rmse(facts, model, record, protocol), scale)
 
     effects = "; ".join(f"{e['name']}: {e['description']}" for e in facts["effects"])
     return [name + ("" if protocol == "init_window" else f" ({protocol})"), record, unit,
@@ -86,17 +85,18 @@ def trail_rows(name: str, facts: dict) -> list[list]:
     both in the benchmark's unit; ``yes`` on the set the augmented physics holds."""
     _, record, unit, scale = BENCHMARKS[name]
     added = {effect["name"] for effect in facts["effects"]}
-
-    def scaled(value):
-        return None if value is None else scale * value
-
     rows = []
     for label, cv in facts["selection"]:
         scored = facts["set_scores"].get(label, {}).get(record) or {}
         members = set() if label == "declared physics" else set(label.split(" + "))
-        rows.append([name, unit, label, scaled(cv), scaled(scored.get("rmse")),
+        rows.append([name, unit, label, in_unit(cv, scale), in_unit(scored.get("rmse"), scale),
                      "yes" if members == added else ""])  # fmt: skip
     return rows
+
+
+def in_unit(value: float | None, scale: float) -> float | None:
+    """An RMSE in SI units in the benchmark's unit (``None`` stays ``None``)."""
+    return None if value is None else scale * value
 
 
 def reference_label(facts: dict) -> str | None:

@@ -95,19 +95,19 @@ class Candidate:
     located: bool = False
 
 
-def _region_level(hypothesis: Hypothesis | None, name: str) -> float | None:
+def _region_level(hypothesis: Hypothesis, name: str) -> float | None:
     """Where ``hypothesis`` says its effect starts on the variable ``name`` (the low end of
     its region), or ``None`` when its region is on another variable or there is none."""
-    if hypothesis is None or hypothesis.region is None:
+    if hypothesis.region is None:
         return None
     variable, low, _ = hypothesis.region
     return float(low) if variable == name and np.isfinite(low) else None
 
 
-def _level(hypothesis: Hypothesis | None, states: np.ndarray, index: int, name: str) -> float:
-    """Where the hypothesis says the effect starts, else the 80th percentile of the state."""
-    located = _region_level(hypothesis, name)
-    return float(np.quantile(states[:, index], 0.8)) if located is None else located
+def _level(states: np.ndarray, index: int) -> float:
+    """Where an effect of a state starts when nothing locates it: the state's 80th
+    percentile."""
+    return float(np.quantile(states[:, index], 0.8))
 
 
 CORNER_FRACTION = 0.025
@@ -143,15 +143,15 @@ def _losses(hypothesis, states, names) -> list[Candidate]:
     """Something removes from a state: an overflow (a fraction of it reaching each other
     state, or leaving the system when there is none), a leak."""
     i, name = hypothesis.equation_index, hypothesis.equation
-    level = _level(hypothesis, states, i, name)
-    located = _region_level(hypothesis, name) is not None
+    located = _region_level(hypothesis, name)
+    level = _level(states, i) if located is None else located
     why = f"{hypothesis.sentence} An overflow of {name} above about {level:.3g}"
     sinks = [j for j in range(len(names)) if j != i] or [None]
     out = [
         Candidate(
             _overflow(i, level, j, names, states),
             why + (" leaving the system." if j is None else f", part of it reaching {names[j]}."),
-            located,
+            located is not None,
         )
         for j in sinks
     ]
@@ -164,7 +164,7 @@ def _gains(hypothesis, states, names) -> list[Candidate]:
     i = hypothesis.equation_index
     return [
         Candidate(
-            _overflow(j, _level(None, states, j, names[j]), i, names, states),
+            _overflow(j, _level(states, j), i, names, states),
             f"{hypothesis.sentence} An overflow of {names[j]} spilling into {names[i]}.",
         )
         for j in range(len(names))
@@ -532,7 +532,7 @@ def _spills(states, names, kinds: Kinds) -> list[Candidate]:
     levels = [i for i in range(len(names)) if _is_level(i, states, kinds)]
     out = []
     for i in levels:
-        level = _level(None, states, i, names[i])
+        level = _level(states, i)
         for j in [k for k in levels if k != i] or [None]:
             where = "out of the system" if j is None else f"part of it into {names[j]}"
             reason = f"{names[i]} is a level: it may overflow above about {level:.3g}, {where}."
